@@ -1,0 +1,37 @@
+"""Pure domain of the grader: lesson case specs, the baseline case table, trajectory metrics and scoring.
+
+Imports numpy and pydantic only, never Genesis, torch, a database, Celery or a web framework.
+"""
+
+from .cases import BASELINE_CASES, CHECK_CASES, CONTACT_CASES, FRICTION_CASES, get_case, with_backend
+from .friction import effective_pair_friction
+from .metrics import Alignment, ContactMetrics, LaneMetrics, Stop, align, contact_metrics, lane_metrics, sustained_stop
+from .results import CaseResult, Provenance, expected_arrays, validate_arrays
+from .specs import CaseSpec, ContactCase, FrictionCase, describe_errors, parse_case
+
+__all__ = [
+    "BASELINE_CASES",
+    "CHECK_CASES",
+    "CONTACT_CASES",
+    "FRICTION_CASES",
+    "Alignment",
+    "CaseResult",
+    "CaseSpec",
+    "ContactCase",
+    "ContactMetrics",
+    "FrictionCase",
+    "LaneMetrics",
+    "Provenance",
+    "Stop",
+    "align",
+    "contact_metrics",
+    "describe_errors",
+    "effective_pair_friction",
+    "expected_arrays",
+    "get_case",
+    "lane_metrics",
+    "parse_case",
+    "sustained_stop",
+    "validate_arrays",
+    "with_backend",
+]

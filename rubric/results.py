@@ -1,0 +1,162 @@
+"""The measured-result contract between the runner and everything that reads evidence: arrays, provenance, status.
+
+A result always exists, even for a case that crashed or timed out (status, error and captured output say why),
+so nothing downstream ever has to guess whether a missing number means "not run" or "failed".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict
+
+from .specs import ContactCase, FrictionCase
+
+RUNNER_VERSION = "1"
+
+Status = Literal["ok", "failed", "invalid", "timeout"]
+
+
+class Timings(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    import_s: float
+    init_s: float
+    build_s: float
+    steps_s: float
+    render_s: float = 0.0
+
+
+class Rendering(BaseModel):
+    """Requested rendering mode and what came of it: OK with frames, or an explicit SKIP."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    requested: bool
+    status: Literal["OK", "SKIP"]
+    frames: int
+    detail: str
+
+
+class Provenance(BaseModel):
+    """Where a number came from. Written by the case process, checked by the parent before acceptance."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    case: str
+    requested_backend: str
+    actual_backend: str
+    torch_device: str
+    device_name: str
+    torch_hip: str | None
+    torch_cuda: str | None
+    versions: dict[str, str]
+    precision: str
+    seed: int
+    deterministic_algorithms: bool
+    execution_mode: Literal["isolated", "warm"]
+    host: str
+    pid: int
+    timings: Timings
+    rendering: Rendering
+    runner_version: str
+    exit_status: int
+
+
+@dataclass
+class CaseResult:
+    """One case's outcome. `arrays` is empty unless the case process wrote them; failures keep their evidence."""
+
+    spec: ContactCase | FrictionCase
+    status: Status
+    arrays: dict[str, np.ndarray] = field(default_factory=dict)
+    provenance: Provenance | None = None
+    error: str | None = None
+    stdout: str = ""
+    stderr: str = ""
+    out_dir: str | None = None
+    wall_s: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    @property
+    def backend(self) -> str:
+        """The backend that produced the numbers; the requested one when nothing was produced."""
+        return self.provenance.actual_backend if self.provenance else self.spec.backend
+
+
+FRAME_FIELDS = ("frame_initial", "frame_final")
+
+
+def expected_arrays(spec: ContactCase | FrictionCase) -> dict[str, tuple[tuple[int, ...] | None, str]]:
+    """Array name -> (shape, dtype kind) that a valid result of `spec` must contain. None shape: a frame."""
+    n = spec.sample_count
+    if isinstance(spec, ContactCase):
+        fields = {
+            "t": ((n,), "f"),
+            "z": ((n,), "f"),
+            "vz": ((n,), "f"),
+            "contact_count": ((n,), "i"),
+            "clearance": ((n,), "f"),
+            "quat": ((n, 4), "f"),
+        }
+    else:
+        fields = {"t": ((n,), "f")}
+        for lane in spec.lanes:
+            p = lane.name
+            fields |= {
+                f"{p}_x": ((n,), "f"),
+                f"{p}_y": ((n,), "f"),
+                f"{p}_z": ((n,), "f"),
+                f"{p}_vx": ((n,), "f"),
+                f"{p}_omega": ((n, 3), "f"),
+                f"{p}_contact_count": ((n,), "i"),
+                f"{p}_table_friction": ((), "f"),
+                f"{p}_cube_friction": ((), "f"),
+                f"{p}_pair_friction": ((), "f"),
+            }
+    for name in FRAME_FIELDS:
+        fields[name] = (None, "u")
+    return fields
+
+
+def validate_arrays(spec: ContactCase | FrictionCase, arrays: dict[str, np.ndarray], *, render: bool) -> list[str]:
+    """Every reason these arrays cannot be accepted as a result of `spec`; empty when they can."""
+    problems = []
+    expected = expected_arrays(spec)
+    for name in sorted(set(expected) - set(arrays)):
+        problems.append(f"{name}: missing")
+    for name in sorted(set(arrays) - set(expected)):
+        problems.append(f"{name}: unexpected field")
+    for name, (shape, kind) in expected.items():
+        if name not in arrays:
+            continue
+        a = arrays[name]
+        if a.dtype.kind != kind:
+            problems.append(f"{name}: dtype {a.dtype} is not of kind '{kind}'")
+            continue
+        if shape is None:
+            problems += _frame_problems(name, a, render=render)
+        elif a.shape != shape:
+            problems.append(f"{name}: shape {a.shape}, expected {shape}")
+        elif kind == "f" and not np.all(np.isfinite(a)):
+            bad = np.argwhere(~np.isfinite(a))[0]
+            sample = int(bad[0]) if bad.size else 0
+            t = arrays.get("t")
+            when = f" (t={float(t[sample]):.4f} s)" if t is not None and a.ndim and sample < len(t) else ""
+            problems.append(f"{name}: first non-finite value at sample {sample}{when}")
+    return problems
+
+
+def _frame_problems(name: str, frame: np.ndarray, *, render: bool) -> list[str]:
+    if not render:
+        return [] if frame.size == 0 else [f"{name}: rendering disabled but a non-empty frame was returned"]
+    if frame.ndim != 3 or frame.shape[2] != 3 or frame.shape[0] == 0 or frame.shape[1] == 0:
+        return [f"{name}: expected a non-empty HxWx3 RGB frame, got shape {frame.shape}"]
+    if frame.max() == frame.min():
+        return [f"{name}: frame is a single flat value ({int(frame.max())}); the camera saw nothing"]
+    return []

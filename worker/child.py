@@ -1,0 +1,20 @@
+"""Isolated case process: `python -m worker.child SPEC.json OUT_DIR` runs one case and exits (the lesson's way)."""
+
+import sys
+from pathlib import Path
+
+from rubric import parse_case
+
+
+def main(argv: list[str]) -> int:
+    spec_path, out_dir = Path(argv[0]), Path(argv[1])
+    import json
+
+    spec = parse_case(json.loads(spec_path.read_text()))
+    from .engine import execute
+
+    return execute(spec, out_dir, mode="isolated")
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

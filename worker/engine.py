@@ -1,0 +1,295 @@
+"""Genesis-side execution of one case: init on the exact backend, build, step, sample, render, write evidence.
+
+Imported only inside a case process (isolated child or warm executor). The only module that touches `genesis`.
+Both execution modes call `execute`, so they cannot drift into different physics.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from rubric import ContactCase, FrictionCase
+from rubric.friction import effective_pair_friction
+from rubric.results import RUNNER_VERSION
+
+from .errors import ProvenanceError, RenderError
+
+# Requested backend -> the Genesis backend asked for explicitly. Never gs.gpu: in 1.3.3 it falls back to CPU
+# with only a warning (genesis/__init__.py, init).
+GENESIS_BACKENDS = {"cpu": "cpu", "rocm": "amdgpu", "cuda": "cuda"}
+
+EXIT_OK, EXIT_ERROR, EXIT_PROVENANCE, EXIT_RENDER = 0, 1, 3, 4
+
+_state: dict = {"key": None, "import_s": 0.0, "init_s": 0.0}
+
+
+def ensure_genesis(backend: str, precision: str, seed: int):
+    """Genesis initialised for exactly this (backend, precision, seed), re-initialising a warm process if needed."""
+    t0 = time.perf_counter()
+    import genesis as gs
+
+    if _state["key"] is None:
+        _state["import_s"] = time.perf_counter() - t0
+    key = (backend, precision, seed)
+    if _state["key"] != key:
+        if _state["key"] is not None:
+            gs.destroy()
+        t1 = time.perf_counter()
+        try:
+            gs.init(
+                backend=getattr(gs, GENESIS_BACKENDS[backend]),
+                precision=precision,
+                seed=seed,
+                logging_level="warning",
+            )
+        except Exception as exc:  # Genesis raises GenesisException when the device is absent
+            raise ProvenanceError(
+                f"requested backend '{backend}' (gs.{GENESIS_BACKENDS[backend]}) could not be initialised: {exc}"
+            ) from exc
+        _state["init_s"] = time.perf_counter() - t1
+        _state["key"] = key
+    verify_backend(backend)
+    return gs
+
+
+def verify_backend(requested: str) -> None:
+    """Fail visibly unless the initialised backend is the requested one (and ROCm really is a HIP build)."""
+    import genesis as gs
+    import torch
+
+    actual = gs.backend.name
+    if actual != GENESIS_BACKENDS[requested]:
+        raise ProvenanceError(f"requested backend '{requested}' but Genesis initialised '{actual}'")
+    # ROCm devices appear in torch's cuda namespace: only torch.version.hip tells them apart from NVIDIA.
+    if requested == "rocm" and not torch.version.hip:
+        raise ProvenanceError("requested backend 'rocm' but torch is not a ROCm (HIP) build")
+    if requested == "cuda" and (torch.version.hip or not torch.version.cuda):
+        raise ProvenanceError("requested backend 'cuda' but torch is not a CUDA build")
+
+
+def _np(tensor) -> np.ndarray:
+    return tensor.detach().cpu().numpy().reshape(-1) if hasattr(tensor, "detach") else np.asarray(tensor).reshape(-1)
+
+
+def _scene(gs, spec, camera_view):
+    scene = gs.Scene(
+        sim_options=gs.options.SimOptions(dt=spec.dt, substeps=spec.substeps, gravity=spec.gravity),
+        rigid_options=gs.options.RigidOptions(enable_collision=spec.enable_collision),
+        show_viewer=False,
+    )
+    table = scene.add_entity(
+        gs.morphs.Box(size=spec.table.size, pos=spec.table.pos, fixed=True),
+        material=gs.materials.Rigid(friction=spec.table.friction),
+        surface=gs.surfaces.Default(color=(0.55, 0.45, 0.35)),
+    )
+    camera = None
+    if spec.render:
+        pos, lookat = camera_view
+        camera = scene.add_camera(res=(480, 320), pos=pos, lookat=lookat, fov=40, GUI=False)
+    return scene, table, camera
+
+
+def _frame(camera) -> np.ndarray:
+    try:
+        rgb = camera.render(rgb=True)[0]
+    except Exception as exc:
+        raise RenderError(f"camera render failed: {exc}") from exc
+    return np.ascontiguousarray(np.asarray(rgb), dtype=np.uint8)
+
+
+EMPTY_FRAME = np.zeros((0, 0, 3), dtype=np.uint8)
+
+
+def simulate_contact(gs, spec: ContactCase):
+    scene, table, camera = _scene(gs, spec, ((1.15, -0.95, 1.05), (0.35, 0.0, 0.78)))
+    cube = scene.add_entity(
+        gs.morphs.Box(size=(spec.cube.size,) * 3, pos=spec.cube.pos),
+        material=gs.materials.Rigid(rho=spec.cube.rho, friction=spec.cube.friction),
+        surface=gs.surfaces.Default(color=spec.cube.color),
+    )
+    t_build = time.perf_counter()
+    scene.build()
+    build_s = time.perf_counter() - t_build
+    n = spec.n_steps
+    out = {
+        "t": (np.arange(1, n + 1) * spec.dt).astype(np.float64),
+        "z": np.empty(n),
+        "vz": np.empty(n),
+        "contact_count": np.empty(n, dtype=np.int32),
+        "quat": np.empty((n, 4)),
+    }
+    render_s = 0.0
+    frames = {"frame_initial": EMPTY_FRAME, "frame_final": EMPTY_FRAME}
+    if camera is not None:
+        t_r = time.perf_counter()
+        frames["frame_initial"] = _frame(camera)
+        render_s += time.perf_counter() - t_r
+    t_steps = time.perf_counter()
+    for i in range(n):
+        scene.step()
+        out["z"][i] = _np(cube.get_pos())[2]
+        out["vz"][i] = _np(cube.get_vel())[2]
+        out["quat"][i] = _np(cube.get_quat())
+        out["contact_count"][i] = int(cube.get_contacts(with_entity=table)["position"].shape[0])
+    steps_s = time.perf_counter() - t_steps
+    if camera is not None:
+        t_r = time.perf_counter()
+        frames["frame_final"] = _frame(camera)
+        render_s += time.perf_counter() - t_r
+    out["clearance"] = out["z"] - spec.cube.size / 2 - spec.table.top_z
+    return out | frames, {"build_s": build_s, "steps_s": steps_s, "render_s": render_s}
+
+
+def simulate_friction(gs, spec: FrictionCase):
+    tx = spec.table.pos[0]
+    scene, table, camera = _scene(gs, spec, ((tx, -2.0, 1.55), (tx, 0.0, 0.72)))
+    cubes = {
+        lane.name: scene.add_entity(
+            gs.morphs.Box(size=(spec.cube_size,) * 3, pos=(spec.start_x, lane.y, spec.rest_z)),
+            material=gs.materials.Rigid(rho=spec.cube_rho, friction=lane.friction),
+            surface=gs.surfaces.Default(color=lane.color),
+        )
+        for lane in spec.lanes
+    }
+    t_build = time.perf_counter()
+    scene.build()
+    build_s = time.perf_counter() - t_build
+    t_steps = time.perf_counter()
+    # Settle first, so the contact manifold exists before measurement time zero.
+    for _ in range(spec.settle_steps):
+        scene.step()
+    velocity = np.array([spec.initial_speed, 0.0, 0.0, 0.0, 0.0, 0.0])
+    for cube in cubes.values():
+        cube.set_dofs_velocity(velocity)
+
+    n = spec.sample_count
+    out: dict[str, np.ndarray] = {"t": (np.arange(n) * spec.dt).astype(np.float64)}
+    for lane in spec.lanes:
+        p = lane.name
+        out |= {f"{p}_{k}": np.empty(n) for k in ("x", "y", "z", "vx")}
+        out[f"{p}_omega"] = np.empty((n, 3))
+        out[f"{p}_contact_count"] = np.empty(n, dtype=np.int32)
+        out[f"{p}_table_friction"] = np.array(spec.table.friction)
+        out[f"{p}_cube_friction"] = np.array(lane.friction)
+        out[f"{p}_pair_friction"] = np.array(effective_pair_friction(spec.table.friction, lane.friction))
+
+    def sample(i):
+        for name, cube in cubes.items():
+            pos, vel = _np(cube.get_pos()), _np(cube.get_vel())
+            out[f"{name}_x"][i], out[f"{name}_y"][i], out[f"{name}_z"][i] = pos[:3]
+            out[f"{name}_vx"][i] = vel[0]
+            out[f"{name}_omega"][i] = _np(cube.get_ang())
+            out[f"{name}_contact_count"][i] = int(cube.get_contacts(with_entity=table)["position"].shape[0])
+
+    render_s = 0.0
+    frames = {"frame_initial": EMPTY_FRAME, "frame_final": EMPTY_FRAME}
+    sample(0)
+    if camera is not None:
+        t_r = time.perf_counter()
+        frames["frame_initial"] = _frame(camera)
+        render_s += time.perf_counter() - t_r
+    for i in range(1, n):
+        scene.step()
+        sample(i)
+    if camera is not None:
+        t_r = time.perf_counter()
+        frames["frame_final"] = _frame(camera)
+        render_s += time.perf_counter() - t_r
+    steps_s = time.perf_counter() - t_steps - render_s
+    return out | frames, {"build_s": build_s, "steps_s": steps_s, "render_s": render_s}
+
+
+def _provenance(spec, mode: str, timings: dict, rendering: dict, exit_status: int) -> dict:
+    import genesis as gs
+    import torch
+
+    try:
+        import quadrants
+
+        quadrants_version = getattr(quadrants, "__version__", None) or _dist_version("quadrants")
+    except ImportError:
+        quadrants_version = "absent"
+    device = gs.device
+    device_name = torch.cuda.get_device_name(device) if device.type == "cuda" else platform.processor() or "cpu"
+    return {
+        "case": spec.name,
+        "requested_backend": spec.backend,
+        "actual_backend": {v: k for k, v in GENESIS_BACKENDS.items()}.get(gs.backend.name, gs.backend.name),
+        "torch_device": str(device),
+        "device_name": device_name,
+        "torch_hip": torch.version.hip,
+        "torch_cuda": torch.version.cuda,
+        "versions": {
+            "genesis": _dist_version("genesis-world"),
+            "quadrants": str(quadrants_version),
+            "torch": torch.__version__,
+            "numpy": np.__version__,
+            "python": platform.python_version(),
+        },
+        "precision": spec.precision,
+        "seed": spec.seed,
+        "deterministic_algorithms": bool(torch.are_deterministic_algorithms_enabled()),
+        "execution_mode": mode,
+        "host": platform.node(),
+        "pid": os.getpid(),
+        "timings": {"import_s": _state["import_s"], "init_s": _state["init_s"], **timings},
+        "rendering": rendering,
+        "runner_version": RUNNER_VERSION,
+        "exit_status": exit_status,
+    }
+
+
+def _dist_version(name: str) -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(name)
+    except PackageNotFoundError:
+        return "absent"
+
+
+def execute(spec: ContactCase | FrictionCase, out_dir: Path, *, mode: str) -> int:
+    """Run one case and write arrays.npz + provenance.json into out_dir. Returns the process exit status.
+
+    On failure nothing is written but the error on stderr: no arrays, so no partial result can be mistaken for one.
+    """
+    out_dir = Path(out_dir)
+    try:
+        if spec.render:
+            # Headless rendering goes through EGL with Mesa; osmesa did not load on the course machines.
+            os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+        gs = ensure_genesis(spec.backend, spec.precision, spec.seed)
+        simulate = simulate_contact if isinstance(spec, ContactCase) else simulate_friction
+        arrays, timings = simulate(gs, spec)
+    except ProvenanceError as exc:
+        print(f"PROVENANCE ERROR [{spec.name}]: {exc}", file=sys.stderr, flush=True)
+        return EXIT_PROVENANCE
+    except RenderError as exc:
+        print(f"RENDER ERROR [{spec.name}]: {exc}", file=sys.stderr, flush=True)
+        return EXIT_RENDER
+    rendering = (
+        {"requested": True, "status": "OK", "frames": 2, "detail": "initial and final RGB frames from a Genesis camera"}
+        if spec.render
+        else {"requested": False, "status": "SKIP", "frames": 0, "detail": "rendering disabled; frame fields empty"}
+    )
+    if not spec.render:
+        print(f"rendering SKIP [{spec.name}]: rendering disabled, frame fields are empty", flush=True)
+    provenance = _provenance(spec, mode, timings, rendering, EXIT_OK)
+    tmp = out_dir / "arrays.tmp.npz"
+    np.savez(tmp, **arrays)
+    (out_dir / "provenance.json").write_text(json.dumps(provenance, indent=2))
+    # Arrays appear under their final name only once complete.
+    tmp.replace(out_dir / "arrays.npz")
+    print(
+        f"case {spec.name}: backend={provenance['actual_backend']} samples={spec.sample_count} "
+        f"build={timings['build_s']:.2f}s steps={timings['steps_s']:.2f}s",
+        flush=True,
+    )
+    return EXIT_OK

@@ -1,0 +1,248 @@
+"""Parent side of case execution: start a case process, keep its output, validate what it wrote, return a result.
+
+Never imports Genesis: the case runs in a child (`isolated`, one process per case, the lesson's contract) or in a
+long-lived `warm` executor process (a fresh scene per case, recycled after a bounded number of cases or any error).
+Either way the parent accepts arrays only after checking shapes, finiteness and provenance against the spec.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from rubric import CaseResult, ContactCase, FrictionCase, Provenance, validate_arrays
+
+EXIT_PROVENANCE, EXIT_RENDER = 3, 4
+DEFAULT_TIMEOUT_S = 900.0
+WARM_MAX_CASES = 50
+EVIDENCE_FILES = ("arrays.npz", "arrays.tmp.npz", "provenance.json", "stdout.txt", "stderr.txt")
+
+
+def _child_env() -> dict[str, str]:
+    env = dict(os.environ)
+    # Headless rendering needs EGL; set before Genesis is imported in the child so a warm process can render too.
+    env.setdefault("PYOPENGL_PLATFORM", "egl")
+    return env
+
+
+def _prepare(spec: ContactCase | FrictionCase, out_dir: Path) -> Path:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    # Stale evidence from an earlier run in this folder must never pass for this run's result.
+    for name in EVIDENCE_FILES:
+        (out_dir / name).unlink(missing_ok=True)
+    spec_path = out_dir / "spec.json"
+    spec_path.write_text(json.dumps(spec.model_dump(mode="json", exclude_computed_fields=True), indent=2))
+    return spec_path
+
+
+def run_case(
+    spec: ContactCase | FrictionCase,
+    out_dir: str | Path,
+    *,
+    mode: str = "isolated",
+    timeout_s: float = DEFAULT_TIMEOUT_S,
+    executor: "WarmExecutor | None" = None,
+) -> CaseResult:
+    """Run one case and return its validated result; failures come back as results too, never as exceptions."""
+    out_dir = Path(out_dir)
+    if mode == "warm":
+        if executor is None:
+            with WarmExecutor() as own:
+                return own.run(spec, out_dir, timeout_s=timeout_s)
+        return executor.run(spec, out_dir, timeout_s=timeout_s)
+    if mode != "isolated":
+        raise ValueError(f"mode must be 'isolated' or 'warm', got {mode!r}")
+    spec_path = _prepare(spec, out_dir)
+    started = time.perf_counter()
+    command = [sys.executable, "-m", "worker.child", str(spec_path), str(out_dir)]
+    try:
+        done = subprocess.run(command, capture_output=True, text=True, timeout=timeout_s, env=_child_env())
+        status, stdout, stderr = done.returncode, done.stdout, done.stderr
+    except subprocess.TimeoutExpired as exc:
+        status = None
+        stdout = (exc.stdout or b"").decode(errors="replace") if isinstance(exc.stdout, bytes) else exc.stdout or ""
+        stderr = (exc.stderr or b"").decode(errors="replace") if isinstance(exc.stderr, bytes) else exc.stderr or ""
+    (out_dir / "stdout.txt").write_text(stdout)
+    (out_dir / "stderr.txt").write_text(stderr)
+    return load_result(spec, out_dir, exit_status=status, mode=mode, wall_s=time.perf_counter() - started,
+                       timeout_s=timeout_s)
+
+
+def load_result(
+    spec: ContactCase | FrictionCase,
+    out_dir: Path,
+    *,
+    exit_status: int | None,
+    mode: str,
+    wall_s: float = 0.0,
+    timeout_s: float = DEFAULT_TIMEOUT_S,
+) -> CaseResult:
+    """Read and check what a case process left in out_dir. exit_status None means it was killed on timeout."""
+    stdout = _read(out_dir / "stdout.txt")
+    stderr = _read(out_dir / "stderr.txt")
+    base = dict(spec=spec, stdout=stdout, stderr=stderr, out_dir=str(out_dir), wall_s=wall_s)
+    if exit_status is None:
+        return CaseResult(status="timeout", error=f"case process exceeded the {timeout_s:.0f} s time limit", **base)
+    if exit_status != 0:
+        return CaseResult(status="failed", error=_failure_reason(exit_status, stderr), **base)
+
+    arrays_path, provenance_path = out_dir / "arrays.npz", out_dir / "provenance.json"
+    if not arrays_path.exists() or not provenance_path.exists():
+        return CaseResult(status="failed", error="case process exited 0 but wrote no arrays/provenance", **base)
+    with np.load(arrays_path, allow_pickle=False) as npz:
+        arrays = {name: npz[name] for name in npz.files}
+    provenance = Provenance.model_validate_json(provenance_path.read_text())
+    problems = _provenance_problems(spec, provenance, mode) + validate_arrays(spec, arrays, render=spec.render)
+    if problems:
+        return CaseResult(status="invalid", arrays=arrays, provenance=provenance, error="; ".join(problems), **base)
+    return CaseResult(status="ok", arrays=arrays, provenance=provenance, **base)
+
+
+def _provenance_problems(spec, provenance: Provenance, mode: str) -> list[str]:
+    problems = []
+    checks = {
+        "case": spec.name,
+        "requested_backend": spec.backend,
+        "actual_backend": spec.backend,
+        "precision": spec.precision,
+        "seed": spec.seed,
+        "execution_mode": mode,
+    }
+    for field, expected in checks.items():
+        if getattr(provenance, field) != expected:
+            problems.append(f"provenance.{field}: {getattr(provenance, field)!r}, expected {expected!r}")
+    if spec.backend == "rocm" and not provenance.torch_hip:
+        problems.append("provenance.torch_hip: a ROCm result must come from a HIP build of torch")
+    rendering = provenance.rendering
+    if rendering.requested != spec.render or rendering.status != ("OK" if spec.render else "SKIP"):
+        problems.append(f"provenance.rendering: {rendering.status} (requested={rendering.requested}), spec render={spec.render}")
+    return problems
+
+
+def _failure_reason(exit_status: int, stderr: str) -> str:
+    lines = [line for line in stderr.strip().splitlines() if line.strip()]
+    marked = [line for line in lines if line.startswith(("PROVENANCE ERROR", "RENDER ERROR"))]
+    tail = marked[-1] if marked else (lines[-1] if lines else "no output on stderr")
+    kind = {EXIT_PROVENANCE: "provenance error", EXIT_RENDER: "render error"}.get(exit_status, "case process failed")
+    return f"{kind} (exit {exit_status}): {tail}"
+
+
+def _read(path: Path) -> str:
+    return path.read_text(errors="replace") if path.exists() else ""
+
+
+class WarmExecutor:
+    """One long-lived Genesis process building a fresh scene per case; recycled after max_cases or any failure."""
+
+    def __init__(self, *, max_cases: int = WARM_MAX_CASES):
+        self.max_cases = max_cases
+        self.cases_run = 0
+        self.processes_started = 0
+        self._proc: subprocess.Popen | None = None
+        self._reply = None
+        self._log = None
+
+    def __enter__(self) -> "WarmExecutor":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _start(self) -> None:
+        read_fd, write_fd = os.pipe()
+        self._log = tempfile.TemporaryFile()
+        self._proc = subprocess.Popen(
+            [sys.executable, "-m", "worker.warm", str(write_fd)],
+            stdin=subprocess.PIPE,
+            stdout=self._log,
+            stderr=self._log,
+            pass_fds=(write_fd,),
+            env=_child_env(),
+            text=True,
+        )
+        os.close(write_fd)
+        self._reply = os.fdopen(read_fd, "r")
+        self.cases_run = 0
+        self.processes_started += 1
+
+    def close(self) -> None:
+        if self._proc is None:
+            return
+        try:
+            self._proc.stdin.close()
+            self._proc.wait(timeout=30)
+        except (subprocess.TimeoutExpired, OSError):
+            self._proc.kill()
+            self._proc.wait()
+        self._reply.close()
+        self._log.close()
+        self._proc = self._reply = self._log = None
+
+    @property
+    def pid(self) -> int | None:
+        return self._proc.pid if self._proc else None
+
+    def run(self, spec, out_dir: str | Path, *, timeout_s: float = DEFAULT_TIMEOUT_S) -> CaseResult:
+        out_dir = Path(out_dir)
+        if self._proc is None or self._proc.poll() is not None or self.cases_run >= self.max_cases:
+            self.close()
+            self._start()
+        spec_path = _prepare(spec, out_dir)
+        started = time.perf_counter()
+        self._proc.stdin.write(json.dumps({"spec": str(spec_path), "out_dir": str(out_dir)}) + "\n")
+        self._proc.stdin.flush()
+        self.cases_run += 1
+        ready, _, _ = select.select([self._reply], [], [], timeout_s)
+        line = self._reply.readline() if ready else ""
+        if not line:
+            # Timed out or died mid-case: the process is not trusted with another case.
+            self._proc.kill()
+            self.close()
+            exit_status = None if not ready else -9
+        else:
+            exit_status = json.loads(line)["exit_status"]
+            if exit_status != 0:
+                self.close()
+        return load_result(spec, out_dir, exit_status=exit_status, mode="warm",
+                           wall_s=time.perf_counter() - started, timeout_s=timeout_s)
+
+
+def run_cases(
+    specs: Iterable[ContactCase | FrictionCase],
+    out_root: str | Path,
+    *,
+    mode: str = "isolated",
+    jobs: int = 1,
+    timeout_s: float = DEFAULT_TIMEOUT_S,
+    progress: Callable[[CaseResult], None] | None = None,
+) -> dict[str, CaseResult]:
+    """Run several cases, each into out_root/NAME; results by case name, in the order given."""
+    specs = list(specs)
+    out_root = Path(out_root)
+    results: dict[str, CaseResult] = {}
+
+    def done(result: CaseResult) -> CaseResult:
+        if progress:
+            progress(result)
+        return result
+
+    if mode == "warm":
+        with WarmExecutor() as executor:
+            for spec in specs:
+                results[spec.name] = done(executor.run(spec, out_root / spec.name, timeout_s=timeout_s))
+        return results
+    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        futures = [(spec, pool.submit(run_case, spec, out_root / spec.name, timeout_s=timeout_s)) for spec in specs]
+        for spec, future in futures:
+            results[spec.name] = done(future.result())
+    return results
