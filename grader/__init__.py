@@ -1,0 +1,1 @@
+"""The grading service: settings, HTTP API, storage, dashboard and the `grader` command line. Never imports Genesis."""

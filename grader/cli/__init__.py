@@ -1,0 +1,13 @@
+"""The `grader` command line; one module per command group, collected here."""
+
+import click
+
+from .case import case
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+def main() -> None:
+    """Autograder for the Genesis course (lesson L03)."""
+
+
+main.add_command(case)

@@ -1,0 +1,18 @@
+"""Session-wide fixtures: every baseline case measured once on real Genesis (CPU), shared by all test packages."""
+
+from __future__ import annotations
+
+import pytest
+
+from rubric import BASELINE_CASES, CaseResult
+from worker import run_cases
+
+
+@pytest.fixture(scope="session")
+def measured(tmp_path_factory) -> dict[str, CaseResult]:
+    """N1-N5 and both friction runs, measured once per session in one warm Genesis process."""
+    out = tmp_path_factory.mktemp("measured")
+    results = run_cases(BASELINE_CASES.values(), out, mode="warm")
+    failed = {name: r.error for name, r in results.items() if not r.ok}
+    assert not failed, f"baseline cases failed on real Genesis: {failed}"
+    return results
