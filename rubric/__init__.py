@@ -9,6 +9,11 @@ from .metrics import Alignment, ContactMetrics, LaneMetrics, Stop, align, contac
 from .results import CaseResult, Provenance, expected_arrays, validate_arrays
 from .specs import CaseSpec, ContactCase, FrictionCase, describe_errors, parse_case
 
+from .exports import grades_csv, gradescope_results
+from .rubrics import RegradePreview, Rubric, RubricGovernanceError, load_rubric, publish_version, regrade_preview
+from .scoring import GradeReport, ItemGrade, cases_to_run, grade_sheet
+from .sheet import ConfigFinding, PredictionSheet, one_factor_findings, parse_sheet
+
 __all__ = [
     "BASELINE_CASES",
     "CHECK_CASES",
@@ -34,4 +39,20 @@ __all__ = [
     "sustained_stop",
     "validate_arrays",
     "with_backend",
+    "ConfigFinding",
+    "GradeReport",
+    "ItemGrade",
+    "PredictionSheet",
+    "RegradePreview",
+    "Rubric",
+    "RubricGovernanceError",
+    "cases_to_run",
+    "grade_sheet",
+    "grades_csv",
+    "gradescope_results",
+    "load_rubric",
+    "one_factor_findings",
+    "parse_sheet",
+    "publish_version",
+    "regrade_preview",
 ]

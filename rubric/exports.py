@@ -1,0 +1,61 @@
+"""Grade exports: a class CSV (one row per student, one column per item) and Gradescope's results.json."""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Sequence
+
+from .scoring import GradeReport
+
+CSV_FIXED_COLUMNS = ("student", "rubric_version", "total", "max_total", "complete")
+
+
+def _number(value: float) -> str:
+    """Scores without float noise: 2.0 -> '2', 0.5 -> '0.5'."""
+    return f"{value:g}"
+
+
+def grades_csv(reports: Sequence[tuple[str, GradeReport]]) -> str:
+    """CSV text: fixed columns, then one score column per rubric item in rubric order.
+
+    An inconclusive item is written as an empty cell: it is not counted, and a 0 would read as a penalty.
+    Reports may come from different rubric versions; the item columns are their union, first seen first.
+    """
+    item_ids: list[str] = []
+    for _, report in reports:
+        item_ids += [i.id for i in report.items if i.id not in item_ids]
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow([*CSV_FIXED_COLUMNS, *item_ids])
+    for student, report in reports:
+        scores = {i.id: ("" if i.verdict == "inconclusive" else _number(i.score)) for i in report.items}
+        writer.writerow([student, report.rubric_version, _number(report.total), _number(report.max_total),
+                         str(report.complete).lower(), *(scores.get(i, "") for i in item_ids)])
+    return out.getvalue()
+
+
+def gradescope_results(report: GradeReport, execution_time: float) -> dict:
+    """Gradescope autograder results.json: overall score and one visible test per rubric item."""
+    if execution_time < 0:
+        raise ValueError(f"execution_time must be >= 0 seconds, got {execution_time}")
+    header = (f"{report.lesson} graded under rubric version {report.rubric_version} "
+              f"(sha256 {report.rubric_hash[:12]}): {_number(report.total)} / {_number(report.max_total)}")
+    notes = [f"config: {finding}" for finding in report.config_findings]
+    if not report.complete:
+        notes.append("some items could not be measured; they score 0 until the cases are measured")
+    return {
+        "score": report.total,
+        "execution_time": round(float(execution_time), 3),
+        "output": "\n".join([header, *notes]),
+        "tests": [
+            {
+                "name": f"{item.id}: {item.question}",
+                "score": item.score,
+                "max_score": item.max_score,
+                "output": item.feedback,
+                "visibility": "visible",
+            }
+            for item in report.items
+        ],
+    }
