@@ -1,0 +1,48 @@
+"""Request dependencies: a database session per request and the caller, from a bearer token."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Annotated
+
+from fastapi import Depends, HTTPException, status
+from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from sqlalchemy.orm import Session
+
+from grader import crud
+from grader.core.db import new_session
+from grader.models import Submission, User
+
+bearer = HTTPBearer(auto_error=False, description="An API token from `grader admin token`.")
+
+
+def get_session() -> Iterator[Session]:
+    with new_session() as session:
+        yield session
+
+
+SessionDep = Annotated[Session, Depends(get_session)]
+
+
+def current_user(session: SessionDep,
+                 credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)]) -> User:
+    if credentials is None or credentials.scheme.lower() != "bearer":
+        raise HTTPException(status.HTTP_401_UNAUTHORIZED, "missing bearer token", {"WWW-Authenticate": "Bearer"})
+    user = crud.user_by_token(session=session, token=credentials.credentials)
+    if user is None:
+        raise HTTPException(status.HTTP_401_UNAUTHORIZED, "unknown or revoked token", {"WWW-Authenticate": "Bearer"})
+    return user
+
+
+CurrentUser = Annotated[User, Depends(current_user)]
+
+
+def readable_submission(submission_id: int, session: SessionDep, user: CurrentUser) -> Submission:
+    """The submission if the caller may read it; 404 otherwise (never revealing that it exists)."""
+    submission = session.get(Submission, submission_id)
+    if submission is None or not crud.can_read(user=user, submission=submission):
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"submission {submission_id} not found")
+    return submission
+
+
+SubmissionDep = Annotated[Submission, Depends(readable_submission)]

@@ -1,0 +1,98 @@
+"""Submissions: create (sheet with configs), status and progress, grade, case runs with provenance, events."""
+
+from __future__ import annotations
+
+import logging
+import math
+
+from fastapi import APIRouter, HTTPException, status
+from pydantic import ValidationError
+from sqlalchemy import select
+
+from grader import crud, dispatch, grading
+from grader.api.deps import CurrentUser, SessionDep, SubmissionDep
+from grader.api.errors import error, field_errors
+from grader.api.responses import AUTH, FORBIDDEN, INVALID, NOT_FOUND
+from grader.api.views import grade_public, submission_public
+from grader.models import Event, Grade
+from grader.schemas import CaseRunPublic, EventPublic, GradePublic, SubmissionCreate, SubmissionPublic
+from grader.settings import settings
+
+log = logging.getLogger(__name__)
+router = APIRouter(prefix="/submissions", tags=["submissions"], responses=AUTH)
+
+
+def non_finite(value, path: str = "sheet") -> list[dict[str, str]]:
+    """Every NaN/Infinity in a JSON-like value, by path (JSON parsers here accept them; the grader must not)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return [{"field": path, "rule": f"must be a finite number, got {value}"}]
+    if isinstance(value, dict):
+        return [e for k, v in value.items() for e in non_finite(v, f"{path}.{k}")]
+    if isinstance(value, list):
+        return [e for i, v in enumerate(value) for e in non_finite(v, f"{path}.{i}")]
+    return []
+
+
+@router.post("", status_code=status.HTTP_202_ACCEPTED, response_model=SubmissionPublic,
+             responses={**INVALID, **FORBIDDEN})
+def create_submission(body: SubmissionCreate, session: SessionDep, user: CurrentUser):
+    """Validate a sheet and its case configs, store the submission and its case runs, then queue every case."""
+    if user.role not in ("student", "instructor"):
+        raise HTTPException(status.HTTP_403_FORBIDDEN, f"role {user.role} may not submit")
+    if problems := non_finite(body.sheet):
+        return error(422, "invalid sheet", problems)
+    try:
+        sheet = grading.parse_sheet(body.sheet)
+        specs = grading.cases_to_run(sheet)
+    except ValidationError as exc:
+        from rubric import describe_errors
+
+        return error(422, "invalid sheet", field_errors(describe_errors(exc), prefix="sheet"))
+    if body.backend is not None:
+        from rubric import with_backend
+
+        specs = [with_backend(spec, backend=body.backend) for spec in specs]
+    submission = crud.create_submission(session=session, student=user, lesson=settings.lesson, sheet=body.sheet,
+                                        specs=specs, force_rerun=body.force_rerun)
+    session.commit()  # nothing is enqueued before the submission and all its case runs are durable
+    for run in submission.case_runs:
+        try:
+            dispatch.send_case_run(run.id, run.attempt, run.backend)
+        except Exception:  # stored and queued in the database: the reconciler re-sends it
+            log.exception("could not enqueue case run %s; the reconciler will re-send it", run.id)
+    return submission_public(submission, session)
+
+
+@router.get("", response_model=list[SubmissionPublic])
+def list_submissions(session: SessionDep, user: CurrentUser):
+    """The caller's own submissions (students) or their course's (instructors, auditors)."""
+    return [submission_public(s, session) for s in crud.visible_submissions(session=session, user=user)]
+
+
+@router.get("/{submission_id}", response_model=SubmissionPublic, responses=NOT_FOUND)
+def get_submission(submission: SubmissionDep, session: SessionDep):
+    """Status and progress of one submission."""
+    return submission_public(submission, session)
+
+
+@router.get("/{submission_id}/grade", response_model=GradePublic,
+            responses={**NOT_FOUND, 409: {"description": "Not graded yet; the body says the current status"}})
+def get_grade(submission: SubmissionDep, session: SessionDep):
+    """The grade with per-item score, feedback and measured evidence."""
+    grade = session.scalar(select(Grade).where(Grade.submission_id == submission.id))
+    if grade is None:
+        detail = f"submission {submission.id} is {submission.status}, not graded"
+        raise HTTPException(status.HTTP_409_CONFLICT, detail + (f": {submission.error}" if submission.error else ""))
+    return grade_public(grade)
+
+
+@router.get("/{submission_id}/case-runs", response_model=list[CaseRunPublic], responses=NOT_FOUND)
+def list_case_runs(submission: SubmissionDep):
+    """Every case run with its state, requested and actual backend, reuse and provenance."""
+    return submission.case_runs
+
+
+@router.get("/{submission_id}/events", response_model=list[EventPublic], responses=NOT_FOUND)
+def list_events(submission: SubmissionDep, session: SessionDep):
+    """Every timestamped state change of the submission and its case runs."""
+    return session.scalars(select(Event).where(Event.submission_id == submission.id).order_by(Event.id)).all()

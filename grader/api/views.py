@@ -1,0 +1,34 @@
+"""Table rows -> public schemas."""
+
+from __future__ import annotations
+
+from collections import Counter
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from grader.models import Grade, Submission
+from grader.schemas import GradePublic, Progress, SubmissionPublic
+
+
+def progress(submission: Submission) -> Progress:
+    counts = Counter(run.status for run in submission.case_runs)
+    return Progress(total=len(submission.case_runs), **{s: counts.get(s, 0) for s in ("queued", "running", "done", "failed")})
+
+
+def submission_public(submission: Submission, session: Session) -> SubmissionPublic:
+    grade = session.scalar(select(Grade).where(Grade.submission_id == submission.id))
+    return SubmissionPublic(
+        id=submission.id, lesson=submission.lesson, student=submission.student.name, status=submission.status,
+        force_rerun=submission.force_rerun, error=submission.error, progress=progress(submission),
+        created_at=submission.created_at, updated_at=submission.updated_at, graded_at=submission.graded_at,
+        total=grade.total if grade else None, max_total=grade.max_total if grade else None,
+    )
+
+
+def grade_public(grade: Grade) -> GradePublic:
+    return GradePublic(
+        submission_id=grade.submission_id, total=grade.total, max_total=grade.max_total,
+        rubric_lesson=grade.rubric_lesson, rubric_version=grade.rubric_version, rubric_hash=grade.rubric_hash,
+        items=grade.report.get("items", []), created_at=grade.created_at,
+    )

@@ -1,0 +1,56 @@
+"""A small HTTP client of the grading API: submit a sheet file, follow its progress, fetch the grade."""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import httpx
+import yaml
+
+
+def load_sheet(path: Path) -> dict:
+    """A sheet from .yaml/.yml or .json."""
+    text = path.read_text()
+    return yaml.safe_load(text) if path.suffix in (".yaml", ".yml") else json.loads(text)
+
+
+class Client:
+    def __init__(self, url: str, token: str, *, timeout: float = 30.0):
+        self.http = httpx.Client(base_url=url.rstrip("/") + "/v1", headers={"Authorization": f"Bearer {token}"},
+                                 timeout=timeout)
+
+    def _ok(self, response: httpx.Response) -> dict | list:
+        if response.is_error:
+            body = response.json() if "json" in response.headers.get("content-type", "") else {"detail": response.text}
+            lines = [body.get("detail", "")] + [f"  {e['field']}: {e['rule']}" for e in body.get("errors", [])]
+            raise RuntimeError(f"HTTP {response.status_code}: " + "\n".join(lines))
+        return response.json()
+
+    def submit(self, sheet: dict, **options) -> dict:
+        return self._ok(self.http.post("/submissions", json={"sheet": sheet, **options}))
+
+    def submission(self, submission_id: int) -> dict:
+        return self._ok(self.http.get(f"/submissions/{submission_id}"))
+
+    def grade(self, submission_id: int) -> dict:
+        return self._ok(self.http.get(f"/submissions/{submission_id}/grade"))
+
+    def case_runs(self, submission_id: int) -> list:
+        return self._ok(self.http.get(f"/submissions/{submission_id}/case-runs"))
+
+    def wait(self, submission_id: int, *, poll_s: float = 1.0, on_progress: Callable[[dict], None] | None = None,
+             timeout_s: float | None = None) -> dict:
+        """Poll until graded or failed; on_progress gets every status body."""
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        while True:
+            state = self.submission(submission_id)
+            if on_progress:
+                on_progress(state)
+            if state["status"] in ("graded", "failed"):
+                return state
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeoutError(f"submission {submission_id} still {state['status']} after {timeout_s} s")
+            time.sleep(poll_s)

@@ -1,0 +1,1 @@
+"""Infrastructure of the grading service: database engine and sessions, token security."""

@@ -1,0 +1,17 @@
+"""Builds the FastAPI app: `uvicorn grader.main:app`. Never imports Genesis or torch."""
+
+from fastapi import FastAPI
+
+from grader.api import errors
+from grader.api.main import api_router
+from grader.settings import settings
+
+app = FastAPI(
+    title="L03 simulation autograder",
+    version="1",
+    description="Submit a prediction sheet with case configs; workers measure the cases on real Genesis; "
+    "the grade, every measured number and its provenance are stored and served. "
+    "Every endpoint except /v1/health and the docs needs a bearer token.",
+)
+errors.install(app, max_bytes=settings.max_body_bytes)
+app.include_router(api_router)

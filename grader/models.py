@@ -1,0 +1,161 @@
+"""Database tables (SQLAlchemy 2): courses, users and tokens, submissions, case runs, measurements, grades, events.
+
+All timestamps are naive UTC. Every state change of a submission or case run also appends an Event row.
+"""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+from typing import Any
+
+from sqlalchemy import JSON, Boolean, DateTime, Float, ForeignKey, Integer, String, Text, UniqueConstraint
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
+
+ROLES = ("student", "instructor", "auditor")
+SUBMISSION_STATES = ("running", "grading", "graded", "failed")
+CASE_RUN_STATES = ("queued", "running", "done", "failed")
+
+
+def utcnow() -> datetime:
+    return datetime.now(UTC).replace(tzinfo=None)
+
+
+class Base(DeclarativeBase):
+    type_annotation_map = {dict[str, Any]: JSON, list[Any]: JSON}
+
+
+class Course(Base):
+    __tablename__ = "courses"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(String(64), unique=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+
+class User(Base):
+    __tablename__ = "users"
+    __table_args__ = (UniqueConstraint("course_id", "name"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    course_id: Mapped[int] = mapped_column(ForeignKey("courses.id"), index=True)
+    name: Mapped[str] = mapped_column(String(64))
+    role: Mapped[str] = mapped_column(String(16))
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+    course: Mapped[Course] = relationship(lazy="joined")
+
+
+class ApiToken(Base):
+    """Only the sha256 of a token is stored; the token itself is shown once, when it is created."""
+
+    __tablename__ = "api_tokens"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id"), index=True)
+    token_hash: Mapped[str] = mapped_column(String(64), unique=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    revoked_at: Mapped[datetime | None] = mapped_column(DateTime)
+
+    user: Mapped[User] = relationship(lazy="joined")
+
+
+class Submission(Base):
+    __tablename__ = "submissions"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    course_id: Mapped[int] = mapped_column(ForeignKey("courses.id"), index=True)
+    student_id: Mapped[int] = mapped_column(ForeignKey("users.id"), index=True)
+    lesson: Mapped[str] = mapped_column(String(16))
+    sheet: Mapped[dict[str, Any]]
+    force_rerun: Mapped[bool] = mapped_column(Boolean, default=False)
+    status: Mapped[str] = mapped_column(String(16), default="running")
+    error: Mapped[str | None] = mapped_column(Text)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    grading_at: Mapped[datetime | None] = mapped_column(DateTime)
+    graded_at: Mapped[datetime | None] = mapped_column(DateTime)
+
+    student: Mapped[User] = relationship(lazy="joined")
+    case_runs: Mapped[list[CaseRun]] = relationship(back_populates="submission", order_by="CaseRun.id")
+
+
+class CaseRun(Base):
+    """One case of one submission on one backend. `attempt` numbers deliveries: a stale message is dropped."""
+
+    __tablename__ = "case_runs"
+    __table_args__ = (UniqueConstraint("submission_id", "name"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), index=True)
+    name: Mapped[str] = mapped_column(String(64))
+    kind: Mapped[str] = mapped_column(String(16))
+    backend: Mapped[str] = mapped_column(String(8), index=True)
+    precision: Mapped[str] = mapped_column(String(4))
+    spec: Mapped[dict[str, Any]]
+    status: Mapped[str] = mapped_column(String(16), default="queued", index=True)
+    attempt: Mapped[int] = mapped_column(Integer, default=1)
+    tries: Mapped[int] = mapped_column(Integer, default=0)
+    content_key: Mapped[str | None] = mapped_column(String(64), index=True)
+    result_status: Mapped[str | None] = mapped_column(String(16))
+    actual_backend: Mapped[str | None] = mapped_column(String(16))
+    provenance: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    artifact_dir: Mapped[str | None] = mapped_column(Text)
+    error: Mapped[str | None] = mapped_column(Text)
+    stderr_tail: Mapped[str | None] = mapped_column(Text)
+    wall_s: Mapped[float | None] = mapped_column(Float)
+    measurement_id: Mapped[int | None] = mapped_column(ForeignKey("measurements.id"))
+    reused_from_id: Mapped[int | None] = mapped_column(ForeignKey("case_runs.id"))
+    worker: Mapped[str | None] = mapped_column(String(255))
+    worker_pid: Mapped[int | None] = mapped_column(Integer)
+    lease_until: Mapped[datetime | None] = mapped_column(DateTime)
+    queued_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    started_at: Mapped[datetime | None] = mapped_column(DateTime)
+    finished_at: Mapped[datetime | None] = mapped_column(DateTime)
+
+    submission: Mapped[Submission] = relationship(back_populates="case_runs")
+
+
+class Measurement(Base):
+    """A validated result, reusable by content key (see grader.reuse for what the key covers)."""
+
+    __tablename__ = "measurements"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    content_key: Mapped[str] = mapped_column(String(64), unique=True)
+    key_inputs: Mapped[dict[str, Any]]
+    # The case run that produced it; a plain id (no FK) so the two tables need no creation-order cycle.
+    case_run_id: Mapped[int] = mapped_column(Integer)
+    backend: Mapped[str] = mapped_column(String(8))
+    provenance: Mapped[dict[str, Any]]
+    artifact_dir: Mapped[str] = mapped_column(Text)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+
+class Grade(Base):
+    """One per submission (unique): a second grading attempt fails on the constraint instead of grading twice."""
+
+    __tablename__ = "grades"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), unique=True)
+    rubric_lesson: Mapped[str] = mapped_column(String(16))
+    rubric_version: Mapped[str] = mapped_column(String(32))
+    rubric_hash: Mapped[str] = mapped_column(String(64))
+    total: Mapped[float] = mapped_column(Float)
+    max_total: Mapped[float] = mapped_column(Float)
+    report: Mapped[dict[str, Any]]
+    execution_s: Mapped[float] = mapped_column(Float, default=0.0)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+
+class Event(Base):
+    """Append-only log of state changes, with the time each happened."""
+
+    __tablename__ = "events"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), index=True)
+    case_run_id: Mapped[int | None] = mapped_column(ForeignKey("case_runs.id"))
+    state: Mapped[str] = mapped_column(String(32))
+    detail: Mapped[str | None] = mapped_column(Text)
+    at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)

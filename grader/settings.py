@@ -1,0 +1,63 @@
+"""One Settings class for the API, the Celery workers and the CLI: embedded defaults, env vars for deployment."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field, model_validator
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+PLACEHOLDERS = ("changeme", "change-me", "password@", ":postgres@")
+
+
+class Settings(BaseSettings):
+    """Defaults run embedded (SQLite database, SQLite-backed broker, files under DATA_DIR); env vars deploy."""
+
+    model_config = SettingsConfigDict(env_prefix="", extra="ignore")
+
+    environment: Literal["development", "production"] = "development"
+    data_dir: Path = Path("var/grader")
+    # Empty means "derive from data_dir": the embedded default needs no server at all.
+    database_url: str = ""
+    broker_url: str = ""
+    artifacts_dir: Path | None = None
+    # Wall-clock limit of one case process; Celery's soft/hard limits sit a margin above it.
+    case_time_limit_s: float = Field(900.0, gt=0)
+    # A running case run whose worker stopped answering is re-queued this long after its time limit.
+    lease_margin_s: float = Field(120.0, ge=0)
+    # A queued case run whose message may have been lost (broker restart) is re-sent after this long.
+    queue_lease_s: float = Field(1800.0, gt=0)
+    # Retries for infrastructure failures only (database, broker, disk); a failed case is never retried elsewhere.
+    max_infra_retries: int = Field(3, ge=0, le=10)
+    execution_mode: Literal["warm", "isolated"] = "warm"
+    warm_max_cases: int = Field(50, ge=1)
+    max_body_bytes: int = Field(1_000_000, gt=0)
+    lesson: str = "L03"
+
+    @model_validator(mode="after")
+    def _derive_and_refuse_placeholders(self) -> "Settings":
+        if not self.database_url:
+            self.database_url = f"sqlite:///{(self.data_dir / 'grader.db').absolute()}"
+        if not self.broker_url:
+            self.broker_url = f"sqla+sqlite:///{(self.data_dir / 'broker.db').absolute()}"
+        if self.artifacts_dir is None:
+            self.artifacts_dir = self.data_dir / "artifacts"
+        self.artifacts_dir = self.artifacts_dir.absolute()
+        if self.environment == "production":
+            for name in ("database_url", "broker_url"):
+                value = getattr(self, name).lower()
+                if value.startswith(("sqlite", "sqla+sqlite")) or any(p in value for p in PLACEHOLDERS):
+                    raise ValueError(f"{name}: an embedded or placeholder value is refused in production")
+        return self
+
+    @property
+    def lease_s(self) -> float:
+        return self.case_time_limit_s + self.lease_margin_s
+
+    @property
+    def embedded(self) -> bool:
+        return self.database_url.startswith("sqlite")
+
+
+settings = Settings()

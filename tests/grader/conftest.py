@@ -1,0 +1,49 @@
+"""The real app in-process (FastAPI TestClient) on a fresh SQLite database; enqueueing is recorded, not sent."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import pytest
+
+
+@dataclass
+class Api:
+    client: object
+    tokens: dict[str, str]
+    sent: list = field(default_factory=list)
+
+    def as_(self, who: str) -> dict[str, str]:
+        return {"Authorization": f"Bearer {self.tokens[who]}"}
+
+
+@pytest.fixture
+def api(tmp_path, monkeypatch):
+    from fastapi.testclient import TestClient
+    from sqlalchemy.orm import Session
+
+    from grader import crud, dispatch
+    from grader.core import db
+    from grader.main import app
+    from grader.settings import settings
+
+    url = f"sqlite:///{tmp_path / 'grader.db'}"
+    monkeypatch.setattr(settings, "database_url", url)
+    monkeypatch.setattr(settings, "artifacts_dir", tmp_path / "artifacts")
+    monkeypatch.setattr(db, "_engine", None)
+    db.migrate(url)
+    tokens = {}
+    with Session(db.get_engine()) as session:
+        course = crud.get_or_create_course(session=session, name="l03")
+        other = crud.get_or_create_course(session=session, name="other")
+        for name, role, c in (("alice", "student", course), ("bob", "student", course),
+                              ("prof", "instructor", course), ("tess", "auditor", course),
+                              ("eve", "instructor", other)):
+            user = crud.get_or_create_user(session=session, course=c, name=name, role=role)
+            tokens[name] = crud.create_token(session=session, user=user)
+        session.commit()
+    state = Api(client=TestClient(app), tokens=tokens)
+    monkeypatch.setattr(dispatch, "send_case_run", lambda *args: state.sent.append(args))
+    yield state
+    db.get_engine().dispose()
+    db._engine = None

@@ -1,0 +1,68 @@
+"""One real stack per test session: PostgreSQL database, Redis db, a Celery worker process, the API on loopback."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from tests import services
+
+
+@dataclass
+class Stack:
+    url: str
+    database_url: str
+    env: dict
+    data_dir: Path
+    tokens: dict[str, str]
+    engine: object
+    worker: object
+    logs: Path
+
+    def client(self, who: str = "alice"):
+        from grader.client import Client
+
+        return Client(self.url, self.tokens[who])
+
+
+@pytest.fixture(scope="session")
+def stack(tmp_path_factory):
+    from grader import crud
+    from grader.core.db import make_engine, migrate
+
+    redis = services.redis_client()
+    redis.flushdb()
+    data_dir = tmp_path_factory.mktemp("service")
+    logs = data_dir / "logs"
+    logs.mkdir()
+    with services.postgres_database() as database_url:
+        migrate(database_url)
+        engine = make_engine(database_url)
+        from sqlalchemy.orm import Session
+
+        tokens = {}
+        with Session(engine) as session:
+            course = crud.get_or_create_course(session=session, name="l03-test")
+            other = crud.get_or_create_course(session=session, name="other-course")
+            for name, role, c in (("alice", "student", course), ("bob", "student", course),
+                                  ("prof", "instructor", course), ("tess", "auditor", course),
+                                  ("eve", "instructor", other)):
+                tokens[name] = crud.create_token(session=session,
+                                                 user=crud.get_or_create_user(session=session, course=c, name=name,
+                                                                              role=role))
+            session.commit()
+        env = dict(os.environ, DATABASE_URL=database_url, BROKER_URL=services.REDIS_URL, DATA_DIR=str(data_dir),
+                   CASE_TIME_LIMIT_S="600", PYTHONPATH=str(services.ROOT))
+        port = services.free_port()
+        api = services.start_api(env, port, logs / "api.log")
+        worker = services.start_worker(env, "cpu,grade", logs / "worker-cpu.log")
+        try:
+            yield Stack(f"http://127.0.0.1:{port}", database_url, env, data_dir, tokens, engine, worker, logs)
+        finally:
+            services.stop(worker)
+            services.stop(api)
+            engine.dispose()
+            redis.flushdb()

@@ -1,0 +1,45 @@
+"""Shared steps of the integration tests: submit over HTTP, wait, read the database directly."""
+
+from __future__ import annotations
+
+import time
+
+from sqlalchemy import func, select
+from sqlalchemy.orm import Session
+
+from grader.models import CaseRun, Event, Grade
+
+# Safety stop only (a cold kernel cache can take minutes); no test asserts how long anything took.
+WAIT_LIMIT_S = 900
+
+
+def submit_and_wait(stack, sheet: dict, who: str = "alice", **options) -> tuple[dict, dict]:
+    client = stack.client(who)
+    created = client.submit(sheet, **options)
+    final = client.wait(created["id"], poll_s=0.5, timeout_s=WAIT_LIMIT_S)
+    return created, final
+
+
+def wait_until(predicate, what: str, limit_s: float = WAIT_LIMIT_S):
+    deadline = time.monotonic() + limit_s
+    while not (value := predicate()):
+        if time.monotonic() > deadline:
+            raise AssertionError(f"gave up waiting for {what}")
+        time.sleep(0.2)
+    return value
+
+
+def grades_of(stack, submission_id: int) -> int:
+    with Session(stack.engine) as session:
+        return session.scalar(select(func.count()).select_from(Grade).where(Grade.submission_id == submission_id))
+
+
+def case_runs(stack, submission_id: int) -> list[CaseRun]:
+    with Session(stack.engine) as session:
+        return session.scalars(select(CaseRun).where(CaseRun.submission_id == submission_id)
+                               .order_by(CaseRun.id)).all()
+
+
+def events(stack, submission_id: int) -> list[Event]:
+    with Session(stack.engine) as session:
+        return session.scalars(select(Event).where(Event.submission_id == submission_id).order_by(Event.id)).all()

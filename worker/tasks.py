@@ -1,0 +1,43 @@
+"""Thin Celery tasks: ids in, lifecycle in grader.runs / grader.grading, retries for infrastructure failures only.
+
+A case that fails (wrong backend, crash, timeout) is a result, stored as such, never retried on another backend.
+"""
+
+from __future__ import annotations
+
+from celery.signals import worker_process_shutdown
+from kombu.exceptions import OperationalError as BrokerError
+from sqlalchemy.exc import OperationalError as DatabaseError
+
+from grader.core.db import new_session
+from grader.settings import settings
+from worker import executor
+from worker.celery_app import app
+
+INFRA_ERRORS = (DatabaseError, BrokerError, OSError)
+RETRY = dict(autoretry_for=INFRA_ERRORS, max_retries=settings.max_infra_retries, retry_backoff=2,
+             retry_backoff_max=60, retry_jitter=True)
+
+
+@app.task(name="worker.tasks.run_case_run", **RETRY)
+def run_case_run(case_run_id: int, attempt: int) -> None:
+    from grader.dispatch import send_grade
+    from grader.runs import execute
+
+    with new_session() as session:
+        to_grade = execute(session=session, case_run_id=case_run_id, attempt=attempt, runner=executor.run)
+    if to_grade is not None:
+        send_grade(to_grade)
+
+
+@app.task(name="worker.tasks.grade_submission", **RETRY)
+def grade_submission(submission_id: int) -> None:
+    from grader.grading import grade_submission as grade
+
+    with new_session() as session:
+        grade(session=session, submission_id=submission_id)
+
+
+@worker_process_shutdown.connect
+def _close_executor(**_) -> None:
+    executor.close()
