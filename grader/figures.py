@@ -496,6 +496,7 @@ def _friction_schematic(fig: Figure, result: CaseResult) -> None:
     s = spec.cube_size
     for lane in spec.lanes:
         _lane_schematic(ax, spec, a, lane, s)
+    ax.add_patch(Rectangle((0, 0), 0, 0, fc="none", ec="#555555", ls="--", label="dashed outline: position at t=0"))
     ax.set_aspect("equal")
     ax.set_xlim(tx - sx / 2 - 0.05, tx + sx / 2 + 0.05)
     ax.set_ylim(ty - sy / 2 - 0.05, ty + sy / 2 + 0.05)
