@@ -1,0 +1,106 @@
+"""`grader grade SHEET`: grade one prediction sheet on this machine, running the cases it needs through the engine."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import click
+import yaml
+from pydantic import ValidationError
+
+from rubric import cases_to_run, describe_errors, grade_sheet, load_rubric, one_factor_findings, parse_sheet
+from rubric.exports import grades_csv, gradescope_results
+
+CONFIG_SUFFIXES = (".yaml", ".yml", ".json")
+EXIT_INCOMPLETE = 2
+
+
+def execute(specs, out_root: Path, mode: str, progress) -> dict:
+    """Run cases on real Genesis (the one expensive dependency; tests replace this function)."""
+    from worker import run_cases
+
+    return run_cases(specs, out_root, mode=mode, progress=progress)
+
+
+def _read(path: Path):
+    try:
+        return yaml.safe_load(path.read_text())  # YAML is a superset of JSON: one reader for both
+    except (OSError, yaml.YAMLError) as exc:
+        raise click.ClickException(f"{path}: cannot read YAML/JSON: {exc}") from None
+
+
+def load_sheet_data(sheet_file: Path, configs_dir: Path | None) -> dict:
+    """The sheet's data with configs from CONFIGS_DIR (ROLE.yaml|json) merged in; a role given twice is an error."""
+    data = _read(sheet_file)
+    if not isinstance(data, dict):
+        raise click.ClickException(f"{sheet_file}: a sheet is a mapping (lesson, student, answers, configs)")
+    if configs_dir is None:
+        return data
+    configs = data.setdefault("configs", {})
+    if not isinstance(configs, dict):
+        raise click.ClickException(f"{sheet_file}: configs must be a mapping of role to case spec")
+    for path in sorted(p for p in configs_dir.iterdir() if p.suffix in CONFIG_SUFFIXES):
+        if path.stem in configs:
+            raise click.ClickException(f"configs.{path.stem}: given both in {sheet_file} and as {path}")
+        configs[path.stem] = _read(path)
+    return data
+
+
+def _echo_report(report) -> None:
+    for item in report.items:
+        click.echo(f"{item.id:3s} {item.verdict:21s} {item.score:g}/{item.max_score:g}  {item.question}")
+        click.echo(f"    {item.feedback}")
+    click.echo(f"total: {report.total:g} / {report.max_total:g} (rubric {report.lesson} v{report.rubric_version}, "
+               f"sha256 {report.rubric_hash[:12]})")
+
+
+@click.command()
+@click.argument("sheet_file", metavar="SHEET", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--configs", "configs_dir", type=click.Path(exists=True, file_okay=False, path_type=Path),
+              help="Folder of case specs named by role (table_exercise.yaml, extension.json, N2.yaml, ...).")
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Folder for the case evidence, report.json, results.json (Gradescope) and grades.csv.")
+@click.option("--json", "as_json", is_flag=True, help="Print the full grade report as JSON on stdout.")
+@click.option("--rubric-version", default=None, help="Rubric version to grade under (default: the latest).")
+@click.option("--mode", type=click.Choice(["warm", "isolated"]), default="warm", show_default=True)
+def grade(sheet_file: Path, configs_dir: Path | None, out_dir: Path, as_json: bool, rubric_version: str | None,
+          mode: str) -> None:
+    """Grade a prediction SHEET against cases measured on this machine; prints each item and the total."""
+    started = time.perf_counter()
+    data = load_sheet_data(sheet_file, configs_dir)
+    try:
+        sheet = parse_sheet(data)
+    except ValidationError as exc:
+        raise click.ClickException(f"{sheet_file}: invalid sheet:\n  " + "\n  ".join(describe_errors(exc))) from None
+    try:
+        rubric = load_rubric(sheet.lesson, rubric_version)
+    except LookupError as exc:
+        raise click.ClickException(str(exc)) from None
+
+    # Human progress goes to stderr so that --json leaves stdout machine-readable.
+    log = lambda message: click.echo(message, err=True)  # noqa: E731
+    for finding in one_factor_findings(sheet, rubric).values():
+        log(("config " if finding.ok else "config NOT RUN: ") + finding.describe())
+    specs = cases_to_run(sheet, rubric)
+    log(f"running {len(specs)} cases ({mode}): {', '.join(s.name for s in specs)}")
+    results = execute(specs, out_dir / "cases", mode,
+                      lambda r: log(f"  {r.spec.name}: {r.status} on {r.backend} in {r.wall_s:.1f} s"
+                                    + (f" ({r.error})" if r.error else "")))
+    report = grade_sheet(sheet, results, rubric)
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "report.json").write_text(report.model_dump_json(indent=2))
+    (out_dir / "results.json").write_text(
+        json.dumps(gradescope_results(report, time.perf_counter() - started), indent=2))
+    (out_dir / "grades.csv").write_text(grades_csv([(sheet.student, report)]))
+    if as_json:
+        click.echo(report.model_dump_json(indent=2))
+    else:
+        _echo_report(report)
+    log(f"report.json, results.json and grades.csv in {out_dir}")
+    if not report.complete:
+        log("some items could not be measured (see not_measured items); exit status 2")
+        sys.exit(EXIT_INCOMPLETE)
