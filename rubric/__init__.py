@@ -7,7 +7,7 @@ from .cases import BASELINE_CASES, CHECK_CASES, CONTACT_CASES, FRICTION_CASES, g
 from .friction import effective_pair_friction
 from .metrics import Alignment, ContactMetrics, LaneMetrics, Stop, align, contact_metrics, lane_metrics, sustained_stop
 from .results import CaseResult, Provenance, expected_arrays, validate_arrays
-from .specs import CaseSpec, ContactCase, FrictionCase, describe_errors, parse_case
+from .specs import CaseSpec, ContactCase, FrictionCase, changed_fields, describe_errors, parse_case
 
 from .exports import grades_csv, gradescope_results
 from .rubrics import RegradePreview, Rubric, RubricGovernanceError, load_rubric, publish_version, regrade_preview
@@ -29,6 +29,7 @@ __all__ = [
     "Provenance",
     "Stop",
     "align",
+    "changed_fields",
     "contact_metrics",
     "describe_errors",
     "effective_pair_friction",

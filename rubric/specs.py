@@ -288,3 +288,27 @@ def describe_errors(error) -> list[str]:
         msg = item["msg"]
         lines.append(f"{loc}: {msg}" if loc else msg)
     return lines
+
+
+def changed_fields(a: BaseModel, b: BaseModel) -> list[str]:
+    """Dotted paths of the input fields whose values differ between two specs ('name' excluded).
+
+    The one-factor rule reads this: N1 -> N2 may differ only in 'substeps'.
+    """
+    da = a.model_dump(mode="json", exclude_computed_fields=True, exclude={"name"})
+    db = b.model_dump(mode="json", exclude_computed_fields=True, exclude={"name"})
+    return _diff(da, db, "")
+
+
+def _diff(a, b, prefix: str) -> list[str]:
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = []
+        for key in sorted(set(a) | set(b)):
+            out += _diff(a.get(key), b.get(key), f"{prefix}{key}.")
+        return out
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b) and all(isinstance(x, dict) for x in a + b):
+        out = []
+        for i, (x, y) in enumerate(zip(a, b)):
+            out += _diff(x, y, f"{prefix}{i}.")
+        return out
+    return [] if a == b else [prefix.rstrip(".")]

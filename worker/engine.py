@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import os
 import platform
+import re
 import sys
 import time
 from pathlib import Path
@@ -41,6 +42,7 @@ def ensure_genesis(backend: str, precision: str, seed: int):
     if _state["key"] != key:
         if _state["key"] is not None:
             gs.destroy()
+            _state.pop("device_name", None)
         t1 = time.perf_counter()
         try:
             gs.init(
@@ -50,8 +52,9 @@ def ensure_genesis(backend: str, precision: str, seed: int):
                 logging_level="warning",
             )
         except Exception as exc:  # Genesis raises GenesisException when the device is absent
+            detail = re.sub(r"~+<|>~+", "", str(exc))  # Genesis's terminal colour markup
             raise ProvenanceError(
-                f"requested backend '{backend}' (gs.{GENESIS_BACKENDS[backend]}) could not be initialised: {exc}"
+                f"requested backend '{backend}' (gs.{GENESIS_BACKENDS[backend]}) could not be initialised: {detail}"
             ) from exc
         _state["init_s"] = time.perf_counter() - t1
         _state["key"] = key
@@ -210,14 +213,13 @@ def _provenance(spec, mode: str, timings: dict, rendering: dict, exit_status: in
     import genesis as gs
     import torch
 
-    try:
-        import quadrants
-
-        quadrants_version = getattr(quadrants, "__version__", None) or _dist_version("quadrants")
-    except ImportError:
-        quadrants_version = "absent"
     device = gs.device
-    device_name = torch.cuda.get_device_name(device) if device.type == "cuda" else platform.processor() or "cpu"
+    if "device_name" not in _state:
+        from genesis.utils.misc import get_device
+
+        # Genesis's own probe: the CPU brand string on cpu, the device properties' name on a GPU.
+        _state["device_name"] = str(get_device(gs.backend)[1])
+    device_name = _state["device_name"]
     return {
         "case": spec.name,
         "requested_backend": spec.backend,
@@ -228,7 +230,7 @@ def _provenance(spec, mode: str, timings: dict, rendering: dict, exit_status: in
         "torch_cuda": torch.version.cuda,
         "versions": {
             "genesis": _dist_version("genesis-world"),
-            "quadrants": str(quadrants_version),
+            "quadrants": _dist_version("quadrants"),
             "torch": torch.__version__,
             "numpy": np.__version__,
             "python": platform.python_version(),

@@ -3,6 +3,7 @@
 import click
 
 from .case import case
+from .check import check
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -11,3 +12,4 @@ def main() -> None:
 
 
 main.add_command(case)
+main.add_command(check)

@@ -1,0 +1,5 @@
+"""`python -m grader.cli` runs the command line (used by tests that need a real process)."""
+
+from . import main
+
+main()

@@ -1,0 +1,352 @@
+"""The L03 lab verdict: every condition of the lesson's "How to know the lab worked", with its measured evidence.
+
+Pure: takes case results and the caller's finding about where outputs were written, returns a CheckReport whose
+text ends in `L03 CHECK: PASSED` or `L03 CHECK: FAILED` followed by the specific failed conditions.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydantic import BaseModel
+
+from . import tolerances as tol
+from .cases import CONTACT_CASES, get_case
+from .metrics import Alignment, ContactMetrics, LaneMetrics, align, contact_metrics, lane_metrics
+from .results import FRAME_FIELDS, CaseResult
+from .specs import changed_fields
+
+# The lesson's case table (dt, substeps -> substep_dt, internal updates over 1.5 s), copied from the lesson text so
+# the check compares derived values against the lesson, not against the same code that derived them.
+LESSON_TIMING = {
+    "N1": dict(dt=0.01, substeps=1, substep_dt=0.010, samples=150, internal_updates=150),
+    "N2": dict(dt=0.01, substeps=2, substep_dt=0.005, samples=150, internal_updates=300),
+    "N3": dict(dt=0.02, substeps=1, substep_dt=0.020, samples=75, internal_updates=75),
+    "N4": dict(dt=0.02, substeps=2, substep_dt=0.010, samples=75, internal_updates=150),
+}
+LESSON_DURATION_S = 1.5
+BASELINE, TABLE_030 = "friction-baseline", "friction-table-0.30"
+
+
+class Condition(BaseModel):
+    id: str
+    title: str
+    passed: bool
+    evidence: str
+
+
+class OutputLocation(BaseModel):
+    """Where the caller wrote generated files; filesystem facts are gathered outside this pure module."""
+
+    passed: bool
+    evidence: str
+
+
+class CheckReport(BaseModel):
+    passed: bool
+    conditions: list[Condition]
+    contact: dict[str, ContactMetrics]
+    lanes: list[LaneMetrics]
+    alignment: Alignment | None
+    backends: dict[str, str]
+
+    @property
+    def failed(self) -> list[Condition]:
+        return [c for c in self.conditions if not c.passed]
+
+    def verdict_line(self) -> str:
+        return "L03 CHECK: PASSED" if self.passed else "L03 CHECK: FAILED"
+
+    def render_text(self) -> str:
+        lines = []
+        for c in self.conditions:
+            lines.append(f"[{'PASS' if c.passed else 'FAIL'}] {c.title}")
+            lines += [f"       {line}" for line in c.evidence.splitlines()]
+        lines.append("")
+        lines.append(self.verdict_line())
+        for c in self.failed:
+            lines.append(f"  failed: {c.title}")
+        return "\n".join(lines)
+
+
+def evaluate(results: dict[str, CaseResult], *, outputs: OutputLocation) -> CheckReport:
+    """Evaluate every lab condition on `results` (keyed by case name: N1-N4 and the two friction runs)."""
+    ok = {name: r for name, r in results.items() if r.ok}
+    contact = {n: contact_metrics(ok[n].spec, ok[n].arrays) for n in CONTACT_CASES if n in ok}
+    lanes = [
+        lane_metrics(ok[name].spec, ok[name].arrays, lane.name)
+        for name in (BASELINE, TABLE_030)
+        if name in ok
+        for lane in ok[name].spec.lanes
+    ]
+    alignment = align("N1", ok["N1"].arrays, "N4", ok["N4"].arrays) if {"N1", "N4"} <= set(ok) else None
+    conditions = [
+        _processes(results),
+        _rendering(results),
+        _arrays(results),
+        _duration(results, ok),
+        _timing_table(ok),
+        _contact(contact, ok),
+        _substeps_reduce_proxy(contact),
+        _n1_n4(alignment),
+        _multi_evidence(contact),
+        _friction_baseline(lanes, ok),
+        _table_change(lanes, ok),
+        Condition(
+            id="outputs",
+            title="generated .npz files and figures stay in the configured output directory, outside version control",
+            passed=outputs.passed,
+            evidence=outputs.evidence,
+        ),
+    ]
+    return CheckReport(
+        passed=all(c.passed for c in conditions),
+        conditions=conditions,
+        contact=contact,
+        lanes=lanes,
+        alignment=alignment,
+        backends={name: r.backend for name, r in results.items()},
+    )
+
+
+def _missing(results: dict[str, CaseResult], names) -> list[str]:
+    out = []
+    for name in names:
+        r = results.get(name)
+        if r is None:
+            out.append(f"{name}: not run")
+        elif not r.ok:
+            out.append(f"{name}: {r.status}: {r.error}")
+    return out
+
+
+def _processes(results) -> Condition:
+    lines, passed = [], True
+    for name, r in results.items():
+        p = r.provenance
+        if p is None:
+            passed = False
+            lines.append(f"{name}: requested {r.spec.backend}, no backend reported; {r.status}: {r.error}")
+            continue
+        good = r.ok and p.exit_status == 0 and p.actual_backend == p.requested_backend
+        passed &= good
+        lines.append(f"{name}: requested {p.requested_backend} -> actual {p.actual_backend} ({p.device_name}), "
+                     f"mode {p.execution_mode}, exit {p.exit_status}{'' if r.ok else f'; {r.status}: {r.error}'}")
+    return Condition(id="processes", passed=passed, evidence="\n".join(lines),
+                     title="every case process reports its requested mode and actual backend and exits successfully")
+
+
+def _rendering(results) -> Condition:
+    lines, passed = [], True
+    for name, r in results.items():
+        if r.provenance is None:
+            passed = False
+            lines.append(f"{name}: no rendering report ({r.status})")
+            continue
+        rd = r.provenance.rendering
+        shapes = " ".join(f"{f}={tuple(r.arrays[f].shape)}" for f in FRAME_FIELDS if f in r.arrays)
+        frames_ok = all(
+            (r.arrays[f].size > 0) == r.spec.render for f in FRAME_FIELDS if f in r.arrays
+        ) and all(f in r.arrays for f in FRAME_FIELDS)
+        good = rd.requested == r.spec.render and rd.status == ("OK" if r.spec.render else "SKIP") and frames_ok
+        passed &= good
+        lines.append(f"{name}: requested={'on' if rd.requested else 'off'} status={rd.status} {shapes}")
+    return Condition(id="rendering", passed=passed, evidence="\n".join(lines),
+                     title="every case reports its rendering mode: frames when enabled, explicit empty frames and SKIP when disabled")
+
+
+def _arrays(results) -> Condition:
+    lines, passed = [], True
+    for name, r in results.items():
+        if r.ok:
+            lines.append(f"{name}: {r.spec.sample_count} samples in every array, all finite")
+        else:
+            passed = False
+            lines.append(f"{name}: {r.status}: {r.error}")
+    return Condition(id="arrays", passed=passed, evidence="\n".join(lines),
+                     title="all required arrays have the expected length and contain finite values")
+
+
+def _duration(results, ok) -> Condition:
+    lines, passed = _missing(results, CONTACT_CASES), not _missing(results, CONTACT_CASES)
+    counts = {}
+    for name in CONTACT_CASES:
+        if name not in ok:
+            continue
+        spec, t = ok[name].spec, ok[name].arrays["t"]
+        covered = spec.n_steps * spec.dt
+        good = math.isclose(covered, LESSON_DURATION_S, rel_tol=1e-9) and math.isclose(float(t[-1]), LESSON_DURATION_S, rel_tol=1e-9)
+        counts[name] = len(t)
+        passed &= good
+        lines.append(f"{name}: {len(t)} samples x dt {spec.dt} = {covered:.4f} s (last sample t={float(t[-1]):.4f} s)")
+    by_dt = {}
+    for name, n in counts.items():
+        by_dt.setdefault(ok[name].spec.dt, set()).add(n)
+    if len(by_dt) < 2 or any(len(v) != 1 for v in by_dt.values()) or len({min(v) for v in by_dt.values()}) != len(by_dt):
+        passed = False
+        lines.append(f"sample count does not change with dt as expected: {by_dt}")
+    return Condition(id="duration", passed=passed, evidence="\n".join(lines),
+                     title="every contact case covers 1.5 s, so sample count changes with dt")
+
+
+def _timing_table(ok) -> Condition:
+    lines, passed = [], True
+    for name, expected in LESSON_TIMING.items():
+        if name not in ok:
+            passed = False
+            lines.append(f"{name}: no result")
+            continue
+        spec = ok[name].spec
+        got = dict(dt=spec.dt, substeps=spec.substeps, substep_dt=spec.substep_dt, samples=spec.sample_count,
+                   internal_updates=spec.internal_updates)
+        good = all(math.isclose(got[k], v, rel_tol=1e-9) for k, v in expected.items())
+        passed &= good
+        lines.append(f"{name}: substep_dt={spec.substep_dt:g} s, internal updates={spec.internal_updates}"
+                     + ("" if good else f"  (lesson table: {expected})"))
+    return Condition(id="timing_table", passed=passed, evidence="\n".join(lines),
+                     title="computed substep_dt and internal update counts match the case table")
+
+
+def _contact(contact: dict[str, ContactMetrics], ok) -> Condition:
+    lines, passed = [], len(contact) == len(CONTACT_CASES)
+    for name in CONTACT_CASES:
+        m = contact.get(name)
+        if m is None:
+            lines.append(f"{name}: no result")
+            continue
+        good = m.first_contact_index is not None and not m.passed_through
+        passed &= good
+        first = f"first contact at t={m.first_contact_time:.2f} s" if m.first_contact_time is not None else "NO CONTACT reported"
+        lines.append(f"{name}: {first}, {m.contact_samples}/{m.n_samples} samples in contact, lowest centre "
+                     f"z={m.min_z:.4f} m vs table top {ok[name].spec.table.top_z:.4f} m"
+                     + (" (PASSED THROUGH)" if m.passed_through else ""))
+    return Condition(id="contact", passed=passed, evidence="\n".join(lines),
+                     title="the cube contacts the table in every case and does not pass through it")
+
+
+def _substeps_reduce_proxy(contact) -> Condition:
+    lines, passed = [], True
+    for coarse, fine in (("N1", "N2"), ("N3", "N4")):
+        if coarse not in contact or fine not in contact:
+            passed = False
+            lines.append(f"{coarse} vs {fine}: missing result")
+            continue
+        a, b = contact[coarse].penetration_proxy, contact[fine].penetration_proxy
+        # A proxy means nothing for a cube that never touched the table or fell through it.
+        valid = all(contact[n].first_contact_index is not None and not contact[n].passed_through for n in (coarse, fine))
+        good = valid and a - b > tol.PROXY_DECREASE_MIN.value
+        if not valid:
+            lines.append(f"{coarse} vs {fine}: no valid contact in both cases, so the proxy comparison is meaningless")
+        passed &= good
+        lines.append(f"dt={contact[coarse].dt:g}: {coarse} proxy {a * 1000:.3f} mm -> {fine} proxy {b * 1000:.3f} mm "
+                     f"(decrease {(a - b) * 1000:.3f} mm; must exceed {tol.PROXY_DECREASE_MIN})")
+    return Condition(id="substeps_reduce_proxy", passed=passed, evidence="\n".join(lines),
+                     title="at fixed dt, the finer internal timestep reduces the penetration proxy")
+
+
+def _n1_n4(alignment: Alignment | None) -> Condition:
+    title = "N1 and N4 agree within the reviewed tolerance at shared sample times, with different sample counts"
+    if alignment is None:
+        return Condition(id="n1_n4_agree", title=title, passed=False, evidence="N1 or N4 has no result")
+    dz, dvz = alignment.max_abs_diff["z"], alignment.max_abs_diff["vz"]
+    passed = (
+        alignment.shared_samples > 0
+        and alignment.samples_a != alignment.samples_b
+        and dz <= tol.N1_N4_MAX_DZ.value
+        and dvz <= tol.N1_N4_MAX_DVZ.value
+    )
+    evidence = (
+        f"samples N1={alignment.samples_a}, N4={alignment.samples_b}; {alignment.shared_samples} shared times "
+        f"({', '.join(f'{t:g}' for t in alignment.first_shared_times)}, ...)\n"
+        f"max |z_N1 - z_N4| = {dz:.3e} m (tolerance {tol.N1_N4_MAX_DZ}); "
+        f"max |vz_N1 - vz_N4| = {dvz:.3e} m/s (tolerance {tol.N1_N4_MAX_DVZ})"
+    )
+    return Condition(id="n1_n4_agree", title=title, passed=passed, evidence=evidence)
+
+
+def _multi_evidence(contact) -> Condition:
+    lines, passed = [], len(contact) == len(CONTACT_CASES)
+    for name, m in contact.items():
+        values = [m.penetration_proxy, m.min_clearance, m.tail_settling_error, m.tail_peak_to_peak, m.max_tilt_deg]
+        good = all(np.isfinite(values)) and m.first_contact_index is not None
+        passed &= good
+        up = f"{m.max_upward_velocity_after_contact:.3f}" if m.max_upward_velocity_after_contact is not None else "n/a"
+        lines.append(
+            f"{name}: proxy {m.penetration_proxy * 1000:.2f} mm | contact {m.contact_samples} samples | "
+            f"separation {m.separation_samples} samples ({m.separation_duration:.2f} s) | max upward vz {up} m/s | "
+            f"tail error {m.tail_settling_error * 1000:+.3f} mm (p-p {m.tail_peak_to_peak * 1000:.3f} mm) | "
+            f"tilt {m.max_tilt_deg:.2f} deg"
+        )
+    return Condition(id="multi_evidence", passed=passed, evidence="\n".join(lines),
+                     title="the interpretation reads trajectory, contact, clearance and settling evidence together")
+
+
+def _lane(lanes: list[LaneMetrics], case: str, lane: str) -> LaneMetrics | None:
+    return next((m for m in lanes if m.case == case and m.lane == lane), None)
+
+
+def _lane_line(m: LaneMetrics) -> str:
+    stop = f"stops after {m.stop.distance:.4f} m at t={m.stop.time:.2f} s" if m.stop.stopped else m.stop.detail
+    return (f"{m.case} / {m.lane}: table {m.table_friction:g}, cube {m.cube_friction:g} -> pair "
+            f"{m.pair_friction:g}; {stop}; max |omega| {m.max_abs_omega:.2f} rad/s"
+            + ("" if m.stayed_on_table else "; LEFT THE TABLE"))
+
+
+def _friction_baseline(lanes, ok) -> Condition:
+    title = "in the baseline friction run, the low-effective-friction lane travels farther before sustained stopping"
+    if BASELINE not in ok:
+        return Condition(id="friction_baseline", title=title, passed=False, evidence=f"{BASELINE}: no result")
+    base = [m for m in lanes if m.case == BASELINE]
+    low, high = min(base, key=lambda m: m.pair_friction), max(base, key=lambda m: m.pair_friction)
+    lines = [_lane_line(m) for m in base]
+    speed = ok[BASELINE].spec.initial_speed
+    passed = low is not high and all(m.stayed_on_table for m in base)
+    passed &= all(abs(m.initial_vx - speed) <= tol.INITIAL_SPEED_MATCH.value for m in base)
+    passed &= all(abs(m.pair_friction_recorded - m.pair_friction) < 1e-9 for m in base)
+    if low.stop.stopped and high.stop.stopped:
+        margin = low.stop.distance - high.stop.distance
+        passed &= margin > tol.STOP_DISTANCE_RESOLUTION.value
+        lines.append(f"{low.lane} travels {margin:+.4f} m farther than {high.lane} "
+                     f"(must exceed {tol.STOP_DISTANCE_RESOLUTION})")
+    else:
+        passed = False
+        lines.append("a lane did not stop within the measured window: no stop distance to compare")
+    return Condition(id="friction_baseline", title=title, passed=passed, evidence="\n".join(lines))
+
+
+def _table_change(lanes, ok) -> Condition:
+    title = "lowering table friction changes the low-friction lane in the predicted direction and leaves the high lane nearly unchanged"
+    missing = [n for n in (BASELINE, TABLE_030) if n not in ok]
+    if missing:
+        return Condition(id="table_friction_change", title=title, passed=False, evidence=f"no result: {missing}")
+    changed = changed_fields(ok[BASELINE].spec, ok[TABLE_030].spec)
+    passed = changed == ["table.friction"]
+    lines = [f"fields changed between runs: {changed or 'none'}" + ("" if passed else " (only table.friction may change)")]
+    for lane in ok[BASELINE].spec.lanes:
+        before, after = _lane(lanes, BASELINE, lane.name), _lane(lanes, TABLE_030, lane.name)
+        lines.append(_lane_line(after))
+        if not (before.stop.stopped and after.stop.stopped):
+            passed = False
+            lines.append(f"{lane.name}: not stopped within the measured window in one run; no distance to compare")
+            continue
+        delta = after.stop.distance - before.stop.distance
+        if after.pair_friction < before.pair_friction:
+            good = delta > tol.STOP_DISTANCE_RESOLUTION.value
+            lines.append(f"{lane.name}: pair {before.pair_friction:g} -> {after.pair_friction:g}, stop distance "
+                         f"{before.stop.distance:.4f} -> {after.stop.distance:.4f} m ({delta:+.4f} m; predicted farther, "
+                         f"must exceed {tol.STOP_DISTANCE_RESOLUTION})")
+        else:
+            good = abs(delta) <= tol.STOP_DISTANCE_RESOLUTION.value
+            lines.append(f"{lane.name}: pair {before.pair_friction:g} -> {after.pair_friction:g} (unchanged), stop distance "
+                         f"{before.stop.distance:.4f} -> {after.stop.distance:.4f} m ({delta:+.4f} m; must stay within "
+                         f"{tol.STOP_DISTANCE_RESOLUTION})")
+        passed &= good
+    return Condition(id="table_friction_change", title=title, passed=passed, evidence="\n".join(lines))
+
+
+def check_cases(*, backend: str = "cpu", render: bool = False) -> list:
+    """The specs `grader check` runs: N1-N4 and both friction runs, on the chosen backend and render mode."""
+    from .cases import CHECK_CASES, with_backend
+
+    return [with_backend(get_case(name), backend=backend, render=render) for name in CHECK_CASES]

@@ -1,0 +1,103 @@
+"""The Genesis runner on real Genesis (CPU): isolated and warm modes, provenance, backend refusal, rendering."""
+
+import json
+
+import numpy as np
+import pytest
+
+from rubric import CONTACT_CASES, get_case, with_backend
+from worker import WarmExecutor, run_case, run_cases
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def isolated(tmp_path_factory):
+    """N1-N4, each in its own fresh process (the lesson's contract), two at a time."""
+    out = tmp_path_factory.mktemp("isolated")
+    return run_cases([get_case(n) for n in CONTACT_CASES], out, mode="isolated", jobs=2)
+
+
+def test_warm_and_isolated_modes_give_identical_arrays(isolated, measured):
+    for name in CONTACT_CASES:
+        iso, warm = isolated[name], measured[name]
+        assert iso.ok, iso.error
+        assert iso.provenance.execution_mode == "isolated" and warm.provenance.execution_mode == "warm"
+        assert iso.provenance.pid != warm.provenance.pid
+        assert sorted(iso.arrays) == sorted(warm.arrays)
+        for field in iso.arrays:
+            np.testing.assert_array_equal(iso.arrays[field], warm.arrays[field], err_msg=f"{name}.{field}")
+
+
+def test_every_case_process_ran_in_its_own_pid(isolated):
+    assert len({r.provenance.pid for r in isolated.values()}) == len(CONTACT_CASES)
+
+
+def test_result_carries_full_provenance_and_evidence_files(isolated):
+    result = isolated["N2"]
+    p = result.provenance
+    assert (p.requested_backend, p.actual_backend, p.torch_device) == ("cpu", "cpu", "cpu")
+    assert p.versions["genesis"] == "1.3.3" and p.versions["torch"].startswith("2.13.0")
+    assert p.precision == "32" and p.seed == 0 and p.exit_status == 0
+    assert p.rendering.status == "SKIP" and p.rendering.frames == 0
+    assert p.timings.build_s > 0 and p.timings.steps_s > 0
+    assert "rendering SKIP" in result.stdout
+    out = result.out_dir
+    for name in ("spec.json", "arrays.npz", "provenance.json", "stdout.txt", "stderr.txt"):
+        assert (pytest.importorskip("pathlib").Path(out) / name).exists(), name
+    # The arrays load back without pickle, and the frames are explicit empty fields.
+    with np.load(f"{out}/arrays.npz", allow_pickle=False) as npz:
+        assert npz["frame_initial"].shape == (0, 0, 3) and npz["z"].shape == (150,)
+
+
+def test_friction_lanes_record_their_frictions_and_start_at_the_declared_speed(measured):
+    result = measured["friction-table-0.30"]
+    a = result.arrays
+    assert float(a["low_pair_friction"]) == pytest.approx(0.30)
+    assert float(a["high_pair_friction"]) == pytest.approx(0.80)
+    assert a["t"][0] == 0.0 and len(a["t"]) == 201
+    assert a["low_vx"][0] == pytest.approx(2.0, abs=1e-3) and a["high_vx"][0] == pytest.approx(2.0, abs=1e-3)
+    assert a["low_omega"].shape == (201, 3)
+
+
+@pytest.mark.parametrize("backend", ["rocm", "cuda"])
+def test_gpu_request_without_device_fails_with_provenance_error_and_leaves_no_result(backend, tmp_path):
+    result = run_case(with_backend(get_case("N1"), backend=backend), tmp_path)
+    assert result.status == "failed"
+    assert result.error.startswith("provenance error")
+    assert f"requested backend '{backend}'" in result.error
+    assert result.arrays == {} and result.provenance is None
+    assert not (tmp_path / "arrays.npz").exists() and not (tmp_path / "provenance.json").exists()
+    assert "PROVENANCE ERROR" in (tmp_path / "stderr.txt").read_text()  # the evidence is kept
+    assert json.loads((tmp_path / "spec.json").read_text())["backend"] == backend
+
+
+def test_warm_executor_is_recycled_after_a_failed_case(tmp_path):
+    with WarmExecutor() as executor:
+        first = executor.run(get_case("N3"), tmp_path / "a")
+        failed = executor.run(with_backend(get_case("N3"), backend="cuda"), tmp_path / "b")
+        again = executor.run(get_case("N3"), tmp_path / "c")
+    assert first.ok and again.ok and failed.status == "failed"
+    assert "PROVENANCE ERROR" in failed.stderr  # captured per case inside the warm process
+    assert executor.processes_started == 2
+    assert first.provenance.pid != again.provenance.pid
+    np.testing.assert_array_equal(first.arrays["z"], again.arrays["z"])
+
+
+def test_stale_evidence_in_the_output_folder_never_passes_for_a_new_result(tmp_path):
+    (tmp_path / "arrays.npz").write_bytes(b"stale")
+    (tmp_path / "provenance.json").write_text("{}")
+    result = run_case(with_backend(get_case("N1"), backend="rocm"), tmp_path)
+    assert result.status == "failed" and not (tmp_path / "arrays.npz").exists()
+
+
+def test_rendering_returns_real_frames_on_a_headless_machine(tmp_path):
+    result = run_case(with_backend(get_case("N1"), backend="cpu", render=True), tmp_path)
+    assert result.ok, result.error
+    assert result.provenance.rendering.status == "OK" and result.provenance.rendering.frames == 2
+    for field in ("frame_initial", "frame_final"):
+        frame = result.arrays[field]
+        assert frame.dtype == np.uint8 and frame.ndim == 3 and frame.shape[2] == 3 and frame.size > 0
+        assert frame.std() > 1.0, f"{field} is flat"
+    # The cube moved between the frames, so the images differ.
+    assert np.abs(result.arrays["frame_initial"].astype(int) - result.arrays["frame_final"].astype(int)).sum() > 0
