@@ -13,8 +13,11 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
+# The embedded service (SQLite, filesystem broker, a local Celery worker): grades examples/l03/reference.yaml.
+# `make run RUN_FLAGS=` keeps serving at the printed URL until Ctrl-C.
+RUN_FLAGS ?= --exit-after-grading
 run: $(STAMP)
-	$(VENV)/bin/grader run --exit-after-grading
+	$(VENV)/bin/grader run $(RUN_FLAGS)
 
 test: $(STAMP)
 	$(PY) -m pytest

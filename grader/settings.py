@@ -12,7 +12,7 @@ PLACEHOLDERS = ("changeme", "change-me", "password@", ":postgres@")
 
 
 class Settings(BaseSettings):
-    """Defaults run embedded (SQLite database, SQLite-backed broker, files under DATA_DIR); env vars deploy."""
+    """Defaults run embedded (SQLite database, kombu filesystem broker, files under DATA_DIR); env vars deploy."""
 
     model_config = SettingsConfigDict(env_prefix="", extra="ignore")
 
@@ -40,14 +40,14 @@ class Settings(BaseSettings):
         if not self.database_url:
             self.database_url = f"sqlite:///{(self.data_dir / 'grader.db').absolute()}"
         if not self.broker_url:
-            self.broker_url = f"sqla+sqlite:///{(self.data_dir / 'broker.db').absolute()}"
+            self.broker_url = "filesystem://"  # folders under data_dir/broker; see worker.celery_app
         if self.artifacts_dir is None:
             self.artifacts_dir = self.data_dir / "artifacts"
         self.artifacts_dir = self.artifacts_dir.absolute()
         if self.environment == "production":
             for name in ("database_url", "broker_url"):
                 value = getattr(self, name).lower()
-                if value.startswith(("sqlite", "sqla+sqlite")) or any(p in value for p in PLACEHOLDERS):
+                if value.startswith(("sqlite", "sqla+sqlite", "filesystem")) or any(p in value for p in PLACEHOLDERS):
                     raise ValueError(f"{name}: an embedded or placeholder value is refused in production")
         return self
 

@@ -2,10 +2,11 @@
 
 from fastapi import APIRouter
 
-from grader.api.routes import courses, files, health, submissions
+from grader.api.routes import courses, exports, files, health, submissions
 
 api_router = APIRouter(prefix="/v1")
 api_router.include_router(health.router)
 api_router.include_router(submissions.router)
 api_router.include_router(files.router)
 api_router.include_router(courses.router)
+api_router.include_router(exports.router)

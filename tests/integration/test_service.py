@@ -56,8 +56,27 @@ def test_same_configs_again_reuse_the_measurements_and_say_so(stack, first):
     assert final["status"] == "graded"
     before = {run.name: run for run in case_runs(stack, created["id"])}
     for run in case_runs(stack, again["id"]):
-        assert run.reused_from_id == before[run.name].id, run.name
+        first_run = before[run.name]  # itself a reuse when an earlier test measured the same spec
+        assert run.reused_from_id == (first_run.reused_from_id or first_run.id), run.name
+        assert run.measurement_id == first_run.measurement_id is not None
         assert run.content_key == before[run.name].content_key
         assert run.provenance == before[run.name].provenance
     assert any("reused measurement" in (e.detail or "") for e in events(stack, again["id"]))
     assert stack.client("bob").grade(again["id"])["total"] == stack.client().grade(created["id"])["total"]
+
+
+def test_instructor_sees_the_course_and_exports_grades(stack, first):
+    created, _ = first
+    prof = {"Authorization": f"Bearer {stack.tokens['prof']}"}
+    listed = httpx.get(f"{stack.url}/v1/courses/l03-test/submissions", headers=prof).json()
+    assert created["id"] in [s["id"] for s in listed]
+    csv = httpx.get(f"{stack.url}/v1/courses/l03-test/grades.csv", headers=prof)
+    assert csv.status_code == 200 and "alice" in csv.text
+    results = httpx.get(f"{stack.url}/v1/submissions/{created['id']}/gradescope.json", headers=prof).json()
+    assert results["tests"]
+    student = {"Authorization": f"Bearer {stack.tokens['alice']}"}
+    assert httpx.get(f"{stack.url}/v1/courses/l03-test/grades.csv", headers=student).status_code == 403
+    figures = httpx.get(f"{stack.url}/v1/submissions/{created['id']}/figures", headers=student, timeout=120)
+    assert figures.status_code == 200 and figures.json()
+    png = httpx.get(f"{stack.url}/v1/submissions/{created['id']}/figures/{figures.json()[0]}", headers=student)
+    assert png.status_code == 200 and png.content[:4] == b"\x89PNG"

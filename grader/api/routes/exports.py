@@ -1,0 +1,50 @@
+"""Grade exports for instructors: the course's grades as CSV, one submission as Gradescope results.json."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, HTTPException, status
+from fastapi.responses import PlainTextResponse
+from sqlalchemy import select
+
+from grader.api.deps import CurrentUser, SessionDep, SubmissionDep
+from grader.api.responses import AUTH, FORBIDDEN, NOT_FOUND
+from grader.models import Course, Grade, Submission
+
+router = APIRouter(tags=["exports"], responses={**AUTH, **FORBIDDEN, **NOT_FOUND})
+
+
+def _report(grade: Grade):
+    from rubric.scoring import GradeReport
+
+    return GradeReport.model_validate(grade.report)
+
+
+def _instructor(user) -> None:
+    if user.role != "instructor":
+        raise HTTPException(status.HTTP_403_FORBIDDEN, "exports are for instructors")
+
+
+@router.get("/courses/{course}/grades.csv", response_class=PlainTextResponse)
+def course_grades_csv(course: str, session: SessionDep, user: CurrentUser):
+    """Every graded submission of the course, one CSV row per submission (latest first per student is the caller's)."""
+    _instructor(user)
+    row = session.scalar(select(Course).where(Course.name == course))
+    if row is None or row.id != user.course_id:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"course {course!r} not found")
+    from rubric.exports import grades_csv
+
+    graded = session.execute(select(Submission, Grade).join(Grade, Grade.submission_id == Submission.id)
+                             .where(Submission.course_id == row.id).order_by(Submission.id)).all()
+    return PlainTextResponse(grades_csv([(s.student.name, _report(g)) for s, g in graded]), media_type="text/csv")
+
+
+@router.get("/submissions/{submission_id}/gradescope.json")
+def gradescope(submission: SubmissionDep, session: SessionDep, user: CurrentUser) -> dict:
+    """Gradescope results.json for one graded submission."""
+    _instructor(user)
+    grade = session.scalar(select(Grade).where(Grade.submission_id == submission.id))
+    if grade is None:
+        raise HTTPException(status.HTTP_409_CONFLICT, f"submission {submission.id} is {submission.status}, not graded")
+    from rubric.exports import gradescope_results
+
+    return gradescope_results(_report(grade), grade.execution_s)

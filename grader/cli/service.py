@@ -1,0 +1,120 @@
+"""`grader admin|worker|reconcile|submit|run`: operate the grading service from the command line."""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+
+import click
+
+from grader.settings import settings
+
+
+@click.group()
+def admin() -> None:
+    """Schema migrations, courses, users and API tokens."""
+
+
+@admin.command()
+def migrate() -> None:
+    """Upgrade the database (DATABASE_URL) to the newest schema."""
+    from grader.core.db import migrate as upgrade
+
+    upgrade()
+    click.echo(f"schema up to date: {settings.database_url.split('@')[-1]}")
+
+
+@admin.command()
+@click.argument("course")
+@click.argument("name")
+@click.option("--role", type=click.Choice(["student", "instructor", "auditor"]), required=True)
+def token(course: str, name: str, role: str) -> None:
+    """Create COURSE and user NAME if needed, and print a new API token for them (shown only once)."""
+    from grader import crud
+    from grader.core.db import new_session
+
+    with new_session() as session:
+        course_row = crud.get_or_create_course(session=session, name=course)
+        try:
+            user = crud.get_or_create_user(session=session, course=course_row, name=name, role=role)
+        except ValueError as exc:
+            raise click.ClickException(str(exc)) from None
+        clear = crud.create_token(session=session, user=user)
+        session.commit()
+    click.echo(clear)
+
+
+@click.command()
+@click.option("--queue", "queues", multiple=True, default=("cpu", "grade"), show_default=True,
+              type=click.Choice(["cpu", "rocm", "cuda", "grade"]), help="Queues to consume (repeatable).")
+@click.option("--loglevel", default="info", show_default=True)
+def worker(queues: tuple[str, ...], loglevel: str) -> None:
+    """Run a Celery worker: one slot holding one warm Genesis process (prefork, concurrency 1)."""
+    name = f"{'-'.join(queues)}@%h"
+    argv = [sys.executable, "-m", "celery", "-A", "worker.celery_app", "worker", "-Q", ",".join(queues),
+            "-c", "1", "--pool", "prefork", "-n", name, "--loglevel", loglevel, "--without-gossip", "--without-mingle"]
+    os.execv(sys.executable, argv)
+
+
+@click.command()
+@click.option("--every", type=float, default=0.0, help="Repeat every N seconds (0: once).")
+def reconcile(every: float) -> None:
+    """Re-send case runs left queued or running past their lease, and stuck gradings."""
+    from grader.core.db import new_session
+    from grader.dispatch import resend
+    from grader.reconcile import find_and_requeue
+
+    while True:
+        with new_session() as session:
+            todo = find_and_requeue(session=session)
+        resend(todo)
+        if todo.case_runs or todo.gradings:
+            click.echo(f"re-sent {len(todo.case_runs)} case runs, {len(todo.gradings)} gradings")
+        if not every:
+            return
+        time.sleep(every)
+
+
+@click.command("submit")
+@click.argument("sheet_file", type=click.Path(exists=True, dir_okay=False, path_type=__import__("pathlib").Path))
+@click.option("--url", envvar="GRADER_URL", default="http://127.0.0.1:8000", show_default=True)
+@click.option("--token", envvar="GRADER_TOKEN", required=True, help="API token (or GRADER_TOKEN).")
+@click.option("--backend", type=click.Choice(["cpu", "rocm", "cuda"]), help="Run every case on this backend.")
+@click.option("--force-rerun", is_flag=True, help="Measure afresh instead of reusing stored measurements.")
+@click.option("--no-wait", is_flag=True, help="Submit and print the id without following progress.")
+def submit(sheet_file, url: str, token: str, backend: str | None, force_rerun: bool, no_wait: bool) -> None:
+    """Submit SHEET_FILE (YAML or JSON) to a running grading service and follow it to its grade."""
+    from grader.client import Client, load_sheet
+    from grader.embedded import follow, summary
+
+    client = Client(url, token)
+    options = {"force_rerun": force_rerun, **({"backend": backend} if backend else {})}
+    try:
+        created = client.submit(load_sheet(sheet_file), **options)
+    except RuntimeError as exc:
+        raise click.ClickException(str(exc)) from None
+    click.echo(f"submission {created['id']}: {created['progress']['total']} case runs queued")
+    if no_wait:
+        return
+    state = follow(client, created["id"], created["progress"]["total"])
+    summary(client, created["id"], state, url)
+    if state["status"] != "graded":
+        sys.exit(1)
+
+
+@click.command("run")
+@click.option("--host", default="127.0.0.1", show_default=True)
+@click.option("--port", default=8000, show_default=True)
+@click.option("--sheet", type=click.Path(exists=True, dir_okay=False, path_type=__import__("pathlib").Path),
+              default=None, help="Sheet to submit (default: examples/l03/reference.yaml).")
+@click.option("--exit-after-grading", is_flag=True, help="Stop once the example sheet is graded.")
+def run(host: str, port: int, sheet, exit_after_grading: bool) -> None:
+    """Run the whole service embedded (SQLite, local worker, no servers), grade the example sheet, keep serving."""
+    from grader import embedded
+
+    sys.exit(embedded.run(host=host, port=port, sheet=sheet or embedded.EXAMPLE_SHEET,
+                          exit_after_grading=exit_after_grading))
+
+
+COMMANDS = (admin, worker, reconcile, submit, run)

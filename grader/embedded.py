@@ -1,0 +1,148 @@
+"""`grader run`: the whole service on one laptop with no server to install.
+
+SQLite database and a Celery broker on kombu's filesystem transport under DATA_DIR, a real Celery
+worker process, the API on loopback, and the reconciler on a timer. Submits the example sheet, shows progress,
+prints the grade summary and where the report is, then keeps serving until Ctrl-C (or exits after grading).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import click
+
+from grader.settings import settings
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLE_SHEET = ROOT / "examples" / "l03" / "reference.yaml"
+RECONCILE_EVERY_S = 30.0
+
+
+def bootstrap() -> dict[str, str]:
+    """Migrate the embedded database and issue fresh tokens for a demo course (printed, never stored in clear)."""
+    from grader import crud
+    from grader.core.db import migrate, new_session
+
+    migrate()
+    with new_session() as session:
+        course = crud.get_or_create_course(session=session, name="demo")
+        tokens = {role: crud.create_token(session=session, user=crud.get_or_create_user(
+            session=session, course=course, name=role, role=role)) for role in ("student", "instructor")}
+        session.commit()
+    return tokens
+
+
+def start_worker(log_path: Path) -> subprocess.Popen:
+    env = dict(os.environ, DATA_DIR=str(settings.data_dir.absolute()), DATABASE_URL=settings.database_url,
+               BROKER_URL=settings.broker_url, ARTIFACTS_DIR=str(settings.artifacts_dir))
+    command = [sys.executable, "-m", "celery", "-A", "worker.celery_app", "worker", "-Q", "cpu,grade", "-c", "1",
+               "--pool", "prefork", "-n", "embedded@%h", "--loglevel", "info", "--without-gossip",
+               "--without-mingle", "--without-heartbeat"]
+    return subprocess.Popen(command, cwd=ROOT, env=env, stdout=log_path.open("ab"), stderr=subprocess.STDOUT,
+                            start_new_session=True)
+
+
+def start_api(host: str, port: int):
+    import uvicorn
+
+    server = uvicorn.Server(uvicorn.Config("grader.main:app", host=host, port=port, log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    while not server.started:
+        if not thread.is_alive():
+            raise click.ClickException(f"the API could not start on {host}:{port} (port in use?)")
+        time.sleep(0.05)
+    return server
+
+
+def reconcile_forever(stop: threading.Event) -> None:
+    from grader.core.db import new_session
+    from grader.dispatch import resend
+    from grader.reconcile import find_and_requeue
+
+    while not stop.wait(RECONCILE_EVERY_S):
+        with new_session() as session:
+            resend(find_and_requeue(session=session))
+
+
+def follow(client, submission_id: int, total: int) -> dict:
+    """Progress bar until graded or failed."""
+    with click.progressbar(length=total, label="measuring cases", show_pos=True) as bar:
+        shown = 0
+
+        def update(state: dict) -> None:
+            nonlocal shown
+            finished = state["progress"]["done"] + state["progress"]["failed"]
+            bar.label = f"{state['status']:8s} {state['progress']['running']} running"
+            bar.update(finished - shown)
+            shown = finished
+
+        return client.wait(submission_id, poll_s=0.5, on_progress=update)
+
+
+def summary(client, submission_id: int, state: dict, url: str) -> Path:
+    """Print the grade summary; write grade.json and case-runs.json under DATA_DIR/reports; return that folder."""
+    folder = settings.data_dir.absolute() / "reports" / f"submission-{submission_id}"
+    folder.mkdir(parents=True, exist_ok=True)
+    runs = client.case_runs(submission_id)
+    (folder / "case-runs.json").write_text(json.dumps(runs, indent=2, default=str))
+    for run in runs:
+        reused = f" (reused case run {run['reused_from_id']})" if run["reused_from_id"] else ""
+        click.echo(f"  {run['name']:22s} {run['status']:6s} on {run['actual_backend'] or '-'}{reused}"
+                   + (f": {run['error']}" if run["error"] else ""))
+    if state["status"] != "graded":
+        click.echo(f"submission {submission_id} {state['status']}: {state['error']}", err=True)
+        return folder
+    grade = client.grade(submission_id)
+    (folder / "grade.json").write_text(json.dumps(grade, indent=2, default=str))
+    for item in grade["items"]:
+        click.echo(f"  {item['id']:4s} {item['score']:5.2f}/{item['max_score']:<5.2f} {item['verdict']:10s} "
+                   f"{item['feedback'][:90]}")
+    click.echo(f"GRADE {grade['total']:g} / {grade['max_total']:g} (rubric {grade['rubric_lesson']} "
+               f"v{grade['rubric_version']})")
+    click.echo(f"report: {folder}/grade.json and {url}/v1/submissions/{submission_id}/grade")
+    return folder
+
+
+def run(*, host: str, port: int, sheet: Path, exit_after_grading: bool) -> int:
+    from grader.client import Client, load_sheet
+
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    click.echo(f"embedded service: database {settings.database_url}, broker {settings.broker_url}")
+    tokens = bootstrap()
+    worker = start_worker(settings.data_dir / "worker.log")
+    server = start_api(host, port)
+    url = f"http://{host}:{port}"
+    stop = threading.Event()
+    threading.Thread(target=reconcile_forever, args=(stop,), daemon=True).start()
+    try:
+        click.echo(f"API at {url} (docs {url}/docs); worker log {settings.data_dir.absolute() / 'worker.log'}")
+        click.echo(f"student token: {tokens['student']}\ninstructor token: {tokens['instructor']}")
+        client = Client(url, tokens["student"])
+        created = client.submit(load_sheet(sheet))
+        click.echo(f"submitted {sheet} as submission {created['id']} ({created['progress']['total']} case runs)")
+        state = follow(client, created["id"], created["progress"]["total"])
+        summary(client, created["id"], state, url)
+        if not exit_after_grading:
+            click.echo(f"serving at {url} until Ctrl-C")
+            signal.signal(signal.SIGTERM, signal.default_int_handler)  # SIGTERM stops cleanly, like Ctrl-C
+            while True:
+                time.sleep(3600)
+        return 0 if state["status"] == "graded" else 1
+    except KeyboardInterrupt:
+        return 130
+    finally:
+        stop.set()
+        server.should_exit = True
+        worker.terminate()
+        try:
+            worker.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            worker.kill()

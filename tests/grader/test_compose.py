@@ -1,0 +1,70 @@
+"""No Docker engine runs here, so the deployment files are checked for the structure the service relies on."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from worker.celery_app import BACKEND_QUEUES, GRADE_QUEUE
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def compose() -> dict:
+    return yaml.safe_load((ROOT / "docker-compose.yml").read_text())
+
+
+def queues(service: dict) -> set[str]:
+    command = service["command"]
+    return set(command[command.index("-Q") + 1].split(","))
+
+
+def test_every_service_is_there_with_a_healthcheck(compose):
+    services = compose["services"]
+    assert {"api", "worker-cpu", "worker-rocm", "redis", "postgres"} <= set(services)
+    for name, service in services.items():
+        if name != "reconciler":
+            assert "healthcheck" in service, name
+        if "build" in service:
+            assert (ROOT / service["build"]["dockerfile"]).is_file(), name
+
+
+def test_workers_listen_on_their_backend_queue_only(compose):
+    services = compose["services"]
+    assert queues(services["worker-cpu"]) == {"cpu", GRADE_QUEUE}
+    assert queues(services["worker-rocm"]) == {"rocm"}
+    assert {"cpu", "rocm"} <= set(BACKEND_QUEUES)
+    for name in ("worker-cpu", "worker-rocm"):
+        command = services[name]["command"]
+        assert command[command.index("-c") + 1] == "1", "one warm Genesis process per worker container"
+
+
+def test_the_cpu_worker_is_scalable(compose):
+    worker = compose["services"]["worker-cpu"]
+    assert "container_name" not in worker and "ports" not in worker
+
+
+def test_the_rocm_worker_gets_the_gpu_devices_and_a_rocm_torch_image(compose):
+    rocm = compose["services"]["worker-rocm"]
+    assert set(rocm["devices"]) == {"/dev/kfd", "/dev/dri"}
+    assert {"video", "render"} <= set(rocm["group_add"])
+    dockerfile = (ROOT / rocm["build"]["dockerfile"]).read_text()
+    base = next(line for line in dockerfile.splitlines() if line.startswith("FROM "))
+    assert "rocm" in base and "torch.version.hip" in dockerfile
+
+
+def test_kernel_cache_and_artifacts_are_named_volumes(compose):
+    assert {"genesis-cache", "artifacts"} <= set(compose["volumes"])
+    for name in ("worker-cpu", "worker-rocm"):
+        mounts = compose["services"][name]["volumes"]
+        assert any(m.startswith("genesis-cache:") for m in mounts) and any(m.startswith("artifacts:") for m in mounts)
+
+
+def test_deployment_uses_postgres_and_redis_not_the_embedded_defaults(compose):
+    for name in ("api", "worker-cpu", "worker-rocm"):
+        env = compose["services"][name]["environment"]
+        assert env["DATABASE_URL"].startswith("postgresql") and env["BROKER_URL"].startswith("redis://")
+        assert env["ENVIRONMENT"] == "production"

@@ -1,0 +1,98 @@
+"""Failure paths on the real stack: a worker process killed mid-case, the reconciler, and backends never substituted."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from datetime import timedelta
+import pytest
+from sqlalchemy.orm import Session
+
+from grader.models import CaseRun, utcnow
+from tests import services
+from tests.integration.helpers import case_runs, events, grades_of, wait_until
+from tests.services import reference_sheet
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+
+def test_worker_killed_mid_case_requeues_and_grades_once(stack):
+    client = stack.client("alice")
+    created = client.submit(reference_sheet(), force_rerun=True)
+
+    def running_with_evidence():
+        for run in case_runs(stack, created["id"]):
+            if run.status == "running" and run.worker_pid:
+                if (stack.data_dir / "artifacts" / "case-runs" / str(run.id) / f"try-{run.tries}" / "spec.json").exists():
+                    return run
+        return None
+
+    victim = wait_until(running_with_evidence, "a case run in the middle of its case")
+    genesis_processes = services.children(victim.worker_pid)
+    os.kill(victim.worker_pid, signal.SIGKILL)  # the pool process holding the case, not the whole worker
+    for pid in genesis_processes:
+        os.kill(pid, signal.SIGKILL)
+
+    final = client.wait(created["id"], poll_s=0.5, timeout_s=900)
+    assert final["status"] == "graded", final
+    after = {run.id: run for run in case_runs(stack, created["id"])}[victim.id]
+    assert after.status == "done" and after.tries == 2 and after.attempt == victim.attempt
+    assert after.reused_from_id is None  # force_rerun: measured again, not borrowed
+    states = [e.state for e in events(stack, created["id"]) if e.case_run_id == victim.id]
+    assert states.count("running") == 2 and states[-1] == "done"
+    assert [e.state for e in events(stack, created["id"])].count("graded") == 1
+    assert grades_of(stack, created["id"]) == 1
+
+
+def test_reconciler_resends_runs_whose_worker_vanished(stack):
+    """Case runs left 'running' past their lease (a worker machine lost, its messages gone) are re-queued and finish."""
+    from grader import crud, grading
+    from grader.models import User
+
+    with Session(stack.engine) as session:
+        alice = session.query(User).filter_by(name="alice").one()
+        sheet = reference_sheet()
+        submission = crud.create_submission(session=session, student=alice, lesson="L03", sheet=sheet,
+                                            specs=grading.cases_to_run(grading.parse_sheet(sheet)), force_rerun=False)
+        session.flush()
+        for run in submission.case_runs:  # claimed by a host that died; never on the broker any more
+            run.status, run.worker, run.worker_pid = "running", "lost-host", 1
+            run.lease_until = utcnow() - timedelta(hours=1)
+        session.commit()
+        submission_id = submission.id
+    done = subprocess.run([sys.executable, "-c", "from grader.cli.service import reconcile; reconcile()"],
+                          env=stack.env, cwd=services.ROOT, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("re-sent"), done.stdout
+    final = stack.client("alice").wait(submission_id, poll_s=0.5, timeout_s=900)
+    assert final["status"] == "graded"
+    for run in case_runs(stack, submission_id):
+        assert run.status == "done" and run.attempt == 2 and run.worker != "lost-host"
+    assert "requeued" in [e.state for e in events(stack, submission_id)]
+    assert grades_of(stack, submission_id) == 1
+
+
+def test_rocm_waits_visibly_then_fails_on_a_worker_without_rocm_never_on_cpu(stack):
+    client = stack.client("alice")
+    created = client.submit(reference_sheet(), backend="rocm")
+    total = created["progress"]["total"]
+    # No rocm worker: every case run is queued, and its message sits on the rocm queue, not consumed by the cpu worker.
+    redis = services.redis_client()
+    assert redis.llen("rocm") == total
+    state = client.submission(created["id"])
+    assert state["status"] == "running" and state["progress"]["queued"] == total
+    # A worker that listens on rocm but has no ROCm device (this machine): each case fails with the provenance error.
+    rocm = services.start_worker(stack.env, "rocm", stack.logs / "worker-rocm.log")
+    try:
+        final = client.wait(created["id"], poll_s=0.5, timeout_s=900)
+    finally:
+        services.stop(rocm)
+    assert final["progress"]["failed"] == total
+    for run in client.case_runs(created["id"]):
+        assert run["backend"] == "rocm" and run["status"] == "failed"
+        assert run["actual_backend"] in (None, "rocm") and "provenance error" in run["error"], run["error"]
+        assert run["tries"] == 1  # a case failure is a result, never retried or moved to another backend
+    assert final["status"] in ("graded", "failed")
+    assert grades_of(stack, created["id"]) == (1 if final["status"] == "graded" else 0)
