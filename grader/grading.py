@@ -10,7 +10,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
@@ -34,6 +33,8 @@ def cases_to_run(sheet) -> list:
 
 def stored_result(run: CaseRun):
     """The CaseResult a case run stands for, read back from its stored provenance and .npz arrays."""
+    import numpy as np
+
     from rubric import CaseResult, Provenance, parse_case
 
     spec = parse_case(run.spec)
