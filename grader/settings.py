@@ -33,7 +33,6 @@ class Settings(BaseSettings):
     execution_mode: Literal["warm", "isolated"] = "warm"
     warm_max_cases: int = Field(50, ge=1)
     max_body_bytes: int = Field(1_000_000, gt=0)
-    lesson: str = "L03"
 
     @model_validator(mode="after")
     def _derive_and_refuse_placeholders(self) -> "Settings":

@@ -16,7 +16,6 @@ from grader.api.responses import AUTH, FORBIDDEN, INVALID, NOT_FOUND
 from grader.api.views import grade_public, submission_public
 from grader.models import Event, Grade
 from grader.schemas import CaseRunPublic, EventPublic, GradePublic, SubmissionCreate, SubmissionPublic
-from grader.settings import settings
 
 log = logging.getLogger(__name__)
 router = APIRouter(prefix="/submissions", tags=["submissions"], responses=AUTH)
@@ -52,7 +51,7 @@ def create_submission(body: SubmissionCreate, session: SessionDep, user: Current
         from rubric import with_backend
 
         specs = [with_backend(spec, backend=body.backend) for spec in specs]
-    submission = crud.create_submission(session=session, student=user, lesson=settings.lesson, sheet=body.sheet,
+    submission = crud.create_submission(session=session, student=user, lesson=sheet.lesson, sheet=body.sheet,
                                         specs=specs, force_rerun=body.force_rerun)
     session.commit()  # nothing is enqueued before the submission and all its case runs are durable
     for run in submission.case_runs:
