@@ -1,7 +1,9 @@
 """The L03 lab verdict: every condition of the lesson's "How to know the lab worked", with its measured evidence.
 
 Pure: takes case results and the caller's finding about where outputs were written, returns a CheckReport whose
-text ends in `L03 CHECK: PASSED` or `L03 CHECK: FAILED` followed by the specific failed conditions.
+text ends in `L03 CHECK: PASSED` or `L03 CHECK: FAILED` followed by the specific failed conditions. Its tolerances
+are the reviewed records of the published rubric version (rubric/lessons/), the same ones grading uses, so the lab
+and the grade can never judge one relationship under two different ranges.
 """
 
 from __future__ import annotations
@@ -11,10 +13,10 @@ import math
 import numpy as np
 from pydantic import BaseModel
 
-from . import tolerances as tol
 from .cases import CONTACT_CASES, get_case
 from .metrics import Alignment, ContactMetrics, LaneMetrics, align, contact_metrics, lane_metrics
 from .results import FRAME_FIELDS, CaseResult
+from .rubrics import Rubric, load_rubric
 from .specs import changed_fields
 
 # The lesson's case table (dt, substeps -> substep_dt, internal updates over 1.5 s), copied from the lesson text so
@@ -43,6 +45,20 @@ class OutputLocation(BaseModel):
     evidence: str
 
 
+class _Tolerances:
+    """The reviewed tolerance records of one rubric version, by name."""
+
+    def __init__(self, rubric: Rubric):
+        self.rubric = rubric
+
+    def __getitem__(self, name: str) -> float:
+        return self.rubric.tolerances[name].value
+
+    def show(self, name: str) -> str:
+        t = self.rubric.tolerances[name]
+        return f"{t.value:g} {t.unit}, '{name}' of rubric {self.rubric.lesson} v{self.rubric.version}"
+
+
 class CheckReport(BaseModel):
     passed: bool
     conditions: list[Condition]
@@ -50,6 +66,7 @@ class CheckReport(BaseModel):
     lanes: list[LaneMetrics]
     alignment: Alignment | None
     backends: dict[str, str]
+    rubric_version: str
 
     @property
     def failed(self) -> list[Condition]:
@@ -70,8 +87,12 @@ class CheckReport(BaseModel):
         return "\n".join(lines)
 
 
-def evaluate(results: dict[str, CaseResult], *, outputs: OutputLocation) -> CheckReport:
-    """Evaluate every lab condition on `results` (keyed by case name: N1-N4 and the two friction runs)."""
+def evaluate(results: dict[str, CaseResult], *, outputs: OutputLocation, rubric: Rubric | None = None) -> CheckReport:
+    """Evaluate every lab condition on `results` (keyed by case name: N1-N4 and the two friction runs).
+
+    Tolerances come from `rubric` (default: the latest published L03 version).
+    """
+    tol = _Tolerances(rubric or load_rubric("L03"))
     ok = {name: r for name, r in results.items() if r.ok}
     contact = {n: contact_metrics(ok[n].spec, ok[n].arrays) for n in CONTACT_CASES if n in ok}
     lanes = [
@@ -88,11 +109,11 @@ def evaluate(results: dict[str, CaseResult], *, outputs: OutputLocation) -> Chec
         _duration(results, ok),
         _timing_table(ok),
         _contact(contact, ok),
-        _substeps_reduce_proxy(contact),
-        _n1_n4(alignment),
+        _substeps_reduce_proxy(contact, tol),
+        _n1_n4(alignment, tol),
         _multi_evidence(contact),
-        _friction_baseline(lanes, ok),
-        _table_change(lanes, ok),
+        _friction_baseline(lanes, ok, tol),
+        _table_change(lanes, ok, tol),
         Condition(
             id="outputs",
             title="generated .npz files and figures stay in the configured output directory, outside version control",
@@ -107,6 +128,7 @@ def evaluate(results: dict[str, CaseResult], *, outputs: OutputLocation) -> Chec
         lanes=lanes,
         alignment=alignment,
         backends={name: r.backend for name, r in results.items()},
+        rubric_version=tol.rubric.version,
     )
 
 
@@ -225,7 +247,7 @@ def _contact(contact: dict[str, ContactMetrics], ok) -> Condition:
                      title="the cube contacts the table in every case and does not pass through it")
 
 
-def _substeps_reduce_proxy(contact) -> Condition:
+def _substeps_reduce_proxy(contact, tol: "_Tolerances") -> Condition:
     lines, passed = [], True
     for coarse, fine in (("N1", "N2"), ("N3", "N4")):
         if coarse not in contact or fine not in contact:
@@ -235,17 +257,17 @@ def _substeps_reduce_proxy(contact) -> Condition:
         a, b = contact[coarse].penetration_proxy, contact[fine].penetration_proxy
         # A proxy means nothing for a cube that never touched the table or fell through it.
         valid = all(contact[n].first_contact_index is not None and not contact[n].passed_through for n in (coarse, fine))
-        good = valid and a - b > tol.PROXY_DECREASE_MIN.value
+        good = valid and a - b > tol["proxy_resolution"]
         if not valid:
             lines.append(f"{coarse} vs {fine}: no valid contact in both cases, so the proxy comparison is meaningless")
         passed &= good
         lines.append(f"dt={contact[coarse].dt:g}: {coarse} proxy {a * 1000:.3f} mm -> {fine} proxy {b * 1000:.3f} mm "
-                     f"(decrease {(a - b) * 1000:.3f} mm; must exceed {tol.PROXY_DECREASE_MIN})")
+                     f"(decrease {(a - b) * 1000:.3f} mm; must exceed {tol.show('proxy_resolution')})")
     return Condition(id="substeps_reduce_proxy", passed=passed, evidence="\n".join(lines),
                      title="at fixed dt, the finer internal timestep reduces the penetration proxy")
 
 
-def _n1_n4(alignment: Alignment | None) -> Condition:
+def _n1_n4(alignment: Alignment | None, tol: "_Tolerances") -> Condition:
     title = "N1 and N4 agree within the reviewed tolerance at shared sample times, with different sample counts"
     if alignment is None:
         return Condition(id="n1_n4_agree", title=title, passed=False, evidence="N1 or N4 has no result")
@@ -253,14 +275,14 @@ def _n1_n4(alignment: Alignment | None) -> Condition:
     passed = (
         alignment.shared_samples > 0
         and alignment.samples_a != alignment.samples_b
-        and dz <= tol.N1_N4_MAX_DZ.value
-        and dvz <= tol.N1_N4_MAX_DVZ.value
+        and dz <= tol["n1_n4_max_dz"]
+        and dvz <= tol["n1_n4_max_dvz"]
     )
     evidence = (
         f"samples N1={alignment.samples_a}, N4={alignment.samples_b}; {alignment.shared_samples} shared times "
         f"({', '.join(f'{t:g}' for t in alignment.first_shared_times)}, ...)\n"
-        f"max |z_N1 - z_N4| = {dz:.3e} m (tolerance {tol.N1_N4_MAX_DZ}); "
-        f"max |vz_N1 - vz_N4| = {dvz:.3e} m/s (tolerance {tol.N1_N4_MAX_DVZ})"
+        f"max |z_N1 - z_N4| = {dz:.3e} m (tolerance {tol.show('n1_n4_max_dz')}); "
+        f"max |vz_N1 - vz_N4| = {dvz:.3e} m/s (tolerance {tol.show('n1_n4_max_dvz')})"
     )
     return Condition(id="n1_n4_agree", title=title, passed=passed, evidence=evidence)
 
@@ -293,7 +315,7 @@ def _lane_line(m: LaneMetrics) -> str:
             + ("" if m.stayed_on_table else "; LEFT THE TABLE"))
 
 
-def _friction_baseline(lanes, ok) -> Condition:
+def _friction_baseline(lanes, ok, tol: "_Tolerances") -> Condition:
     title = "in the baseline friction run, the low-effective-friction lane travels farther before sustained stopping"
     if BASELINE not in ok:
         return Condition(id="friction_baseline", title=title, passed=False, evidence=f"{BASELINE}: no result")
@@ -302,20 +324,20 @@ def _friction_baseline(lanes, ok) -> Condition:
     lines = [_lane_line(m) for m in base]
     speed = ok[BASELINE].spec.initial_speed
     passed = low is not high and all(m.stayed_on_table for m in base)
-    passed &= all(abs(m.initial_vx - speed) <= tol.INITIAL_SPEED_MATCH.value for m in base)
+    passed &= all(abs(m.initial_vx - speed) <= tol["initial_speed_match"] for m in base)
     passed &= all(abs(m.pair_friction_recorded - m.pair_friction) < 1e-9 for m in base)
     if low.stop.stopped and high.stop.stopped:
         margin = low.stop.distance - high.stop.distance
-        passed &= margin > tol.STOP_DISTANCE_RESOLUTION.value
+        passed &= margin > tol["stop_distance_resolution"]
         lines.append(f"{low.lane} travels {margin:+.4f} m farther than {high.lane} "
-                     f"(must exceed {tol.STOP_DISTANCE_RESOLUTION})")
+                     f"(must exceed {tol.show('stop_distance_resolution')})")
     else:
         passed = False
         lines.append("a lane did not stop within the measured window: no stop distance to compare")
     return Condition(id="friction_baseline", title=title, passed=passed, evidence="\n".join(lines))
 
 
-def _table_change(lanes, ok) -> Condition:
+def _table_change(lanes, ok, tol: "_Tolerances") -> Condition:
     title = "lowering table friction changes the low-friction lane in the predicted direction and leaves the high lane nearly unchanged"
     missing = [n for n in (BASELINE, TABLE_030) if n not in ok]
     if missing:
@@ -332,15 +354,15 @@ def _table_change(lanes, ok) -> Condition:
             continue
         delta = after.stop.distance - before.stop.distance
         if after.pair_friction < before.pair_friction:
-            good = delta > tol.STOP_DISTANCE_RESOLUTION.value
+            good = delta > tol["stop_distance_resolution"]
             lines.append(f"{lane.name}: pair {before.pair_friction:g} -> {after.pair_friction:g}, stop distance "
                          f"{before.stop.distance:.4f} -> {after.stop.distance:.4f} m ({delta:+.4f} m; predicted farther, "
-                         f"must exceed {tol.STOP_DISTANCE_RESOLUTION})")
+                         f"must exceed {tol.show('stop_distance_resolution')})")
         else:
-            good = abs(delta) <= tol.STOP_DISTANCE_RESOLUTION.value
+            good = abs(delta) <= tol["high_lane_unchanged"]
             lines.append(f"{lane.name}: pair {before.pair_friction:g} -> {after.pair_friction:g} (unchanged), stop distance "
                          f"{before.stop.distance:.4f} -> {after.stop.distance:.4f} m ({delta:+.4f} m; must stay within "
-                         f"{tol.STOP_DISTANCE_RESOLUTION})")
+                         f"{tol.show('high_lane_unchanged')})")
         passed &= good
     return Condition(id="table_friction_change", title=title, passed=passed, evidence="\n".join(lines))
 

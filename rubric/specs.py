@@ -139,7 +139,8 @@ class ContactCase(Timing, Execution):
     name: Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.\-]+$")]
     dt: Annotated[float, Field(gt=0.0, le=0.1)] = 0.01
     substeps: Annotated[int, Field(ge=1, le=MAX_SUBSTEPS, strict=True)] = 1
-    duration: Annotated[float, Field(gt=0.0, le=MAX_DURATION_S)] = 1.5
+    # validate_default: the step-count rule must hold for the default duration too (dt=0.013 with 1.5 s is not integral).
+    duration: Annotated[float, Field(gt=0.0, le=MAX_DURATION_S, validate_default=True)] = 1.5
     gravity: Vec3 = (0.0, 0.0, -9.81)
     enable_collision: bool = True
     table: Table = Table()
@@ -195,7 +196,7 @@ class FrictionCase(Timing, Execution):
     dt: Annotated[float, Field(gt=0.0, le=0.1)] = 0.01
     substeps: Annotated[int, Field(ge=1, le=MAX_SUBSTEPS, strict=True)] = 2
     # Measurement duration, counted from measurement time zero (after settling).
-    duration: Annotated[float, Field(gt=0.0, le=MAX_DURATION_S)] = 2.0
+    duration: Annotated[float, Field(gt=0.0, le=MAX_DURATION_S, validate_default=True)] = 2.0
     gravity: Vec3 = (0.0, 0.0, -9.81)
     enable_collision: bool = True
     # Long enough that the low-effective-friction lane (slid ~0.7 m at table 0.30) stays on it.

@@ -29,8 +29,10 @@ def transport_options(url: str) -> dict:
     if url.startswith("filesystem"):
         folder = settings.data_dir.absolute() / "broker"
         (folder / "processed").mkdir(parents=True, exist_ok=True)
+        # control_folder defaults to ./control, relative to whatever directory a process started in.
         return {"data_folder_in": str(folder), "data_folder_out": str(folder), "store_processed": False,
-                "processed_folder": str(folder / "processed"), "polling_interval": 0.2}
+                "processed_folder": str(folder / "processed"), "control_folder": str(folder / "control"),
+                "polling_interval": 0.2}
     return {}
 
 

@@ -1,11 +1,11 @@
-"""The `grader` command line; one module per command group, collected here."""
+"""The `grader` command line; one module per command group, collected here.
+
+Commands are taken as module attributes so `grader.cli.grade` etc. stay the submodules (tests patch them).
+"""
 
 import click
 
-from .bench import bench
-from .case import case
-from .check import check
-from .grade import grade
+from . import bench, case, check, grade, service
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -13,7 +13,5 @@ def main() -> None:
     """Autograder for the Genesis course (lesson L03)."""
 
 
-main.add_command(bench)
-main.add_command(case)
-main.add_command(check)
-main.add_command(grade)
+for command in (bench.bench, case.case, check.check, grade.grade, *service.COMMANDS):
+    main.add_command(command)

@@ -71,7 +71,7 @@ def test_invalid_config_is_named_by_its_path(api):
 def test_a_config_with_a_fractional_step_count_is_refused(api):
     sheet = reference_sheet()
     sheet["configs"]["extension"]["dt"] = 0.013  # 1.5 / 0.013 is not a whole number of outer steps
-    body = rejected(api, post(api, {"sheet": sheet}), "duration")
+    body = rejected(api, post(api, {"sheet": sheet}), "sheet.configs.extension.duration")
     assert any("integer number of outer steps" in e["rule"] for e in body["errors"])
 
 

@@ -92,3 +92,9 @@ def test_shown_spec_round_trips_and_baseline_differs_by_one_factor():
     assert changed_fields(get_case("N3"), get_case("N4")) == ["substeps"]
     assert changed_fields(get_case("friction-baseline"), get_case("friction-table-0.30")) == ["table.friction"]
     assert sorted(changed_fields(get_case("N1"), get_case("N3"))) == ["dt"]
+
+
+def test_step_count_rule_applies_to_the_default_duration():
+    # Only dt given: 1.5 s / 0.013 s is not an integer number of steps, even though duration was not written.
+    errors = errors_for(dt=0.013)
+    assert any(e.startswith("duration:") and "not an integer number of outer steps" in e for e in errors), errors
