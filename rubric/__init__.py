@@ -7,7 +7,7 @@ from .cases import BASELINE_CASES, CHECK_CASES, CONTACT_CASES, FRICTION_CASES, g
 from .friction import effective_pair_friction
 from .metrics import Alignment, ContactMetrics, LaneMetrics, Stop, align, contact_metrics, lane_metrics, sustained_stop
 from .results import CaseResult, Provenance, expected_arrays, validate_arrays
-from .specs import CaseSpec, ContactCase, FrictionCase, changed_fields, describe_errors, parse_case
+from .specs import CaseSpec, ContactCase, FieldChange, FrictionCase, describe_errors, field_changes, parse_case
 
 from .exports import grades_csv, gradescope_results
 from .rubrics import RegradePreview, Rubric, RubricGovernanceError, load_rubric, publish_version, regrade_preview
@@ -24,16 +24,17 @@ __all__ = [
     "CaseSpec",
     "ContactCase",
     "ContactMetrics",
+    "FieldChange",
     "FrictionCase",
     "LaneMetrics",
     "Provenance",
     "Stop",
     "align",
-    "changed_fields",
     "contact_metrics",
     "describe_errors",
     "effective_pair_friction",
     "expected_arrays",
+    "field_changes",
     "get_case",
     "lane_metrics",
     "parse_case",

@@ -17,7 +17,7 @@ from .cases import CONTACT_CASES, get_case
 from .metrics import Alignment, ContactMetrics, LaneMetrics, align, contact_metrics, lane_metrics
 from .results import FRAME_FIELDS, CaseResult
 from .rubrics import Rubric, load_rubric
-from .specs import changed_fields
+from .specs import field_changes
 
 # The lesson's case table (dt, substeps -> substep_dt, internal updates over 1.5 s), copied from the lesson text so
 # the check compares derived values against the lesson, not against the same code that derived them.
@@ -342,7 +342,7 @@ def _table_change(lanes, ok, tol: "_Tolerances") -> Condition:
     missing = [n for n in (BASELINE, TABLE_030) if n not in ok]
     if missing:
         return Condition(id="table_friction_change", title=title, passed=False, evidence=f"no result: {missing}")
-    changed = changed_fields(ok[BASELINE].spec, ok[TABLE_030].spec)
+    changed = [c.field for c in field_changes(ok[BASELINE].spec, ok[TABLE_030].spec)]
     passed = changed == ["table.friction"]
     lines = [f"fields changed between runs: {changed or 'none'}" + ("" if passed else " (only table.friction may change)")]
     for lane in ok[BASELINE].spec.lanes:

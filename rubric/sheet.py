@@ -15,7 +15,7 @@ from pydantic_core import PydanticCustomError
 
 from .cases import BASELINE_CASES
 from .rubrics import ConfigRule, Rubric
-from .specs import ContactCase, FrictionCase
+from .specs import ContactCase, FieldChange, FrictionCase, field_changes
 
 CaseName = Literal["N1", "N2", "N3", "N4"]
 LaneName = Literal["low", "high"]
@@ -254,15 +254,6 @@ def parse_sheet(data: Any) -> PredictionSheet:
 # --- the one-factor rule -------------------------------------------------------------------------------------
 
 # Not inputs of the experiment: the label a case is stored under and whether frames are rendered.
-IGNORED_FIELDS = {"name", "render"}
-
-
-class FieldChange(BaseModel):
-    field: str
-    baseline: Any
-    config: Any
-
-
 class ConfigFinding(BaseModel):
     """How one submitted config compares with its declared baseline, field by field."""
 
@@ -283,31 +274,6 @@ class ConfigFinding(BaseModel):
         lines = "; ".join(f"{c.field}: {c.baseline} -> {c.config}" for c in self.violations)
         return (f"{self.role} vs {self.baseline}: too many inputs changed at once; only "
                 f"{', '.join(self.may_change) or 'nothing'} may change, but also: {lines}")
-
-
-def _flatten(value: Any, prefix: str = "") -> dict[str, Any]:
-    if isinstance(value, dict):
-        out = {}
-        for key, item in value.items():
-            out |= _flatten(item, f"{prefix}{key}.")
-        return out
-    if isinstance(value, list) and value and isinstance(value[0], dict):
-        out = {}
-        for i, item in enumerate(value):
-            out |= _flatten(item, f"{prefix}{i}.")
-        return out
-    return {prefix[:-1]: value}
-
-
-def field_changes(baseline: ContactCase | FrictionCase, config: ContactCase | FrictionCase) -> list[FieldChange]:
-    """Every input field whose value differs (dotted paths like `table.friction`, `lanes.0.friction`)."""
-    a = _flatten(baseline.model_dump(mode="json", exclude_computed_fields=True))
-    b = _flatten(config.model_dump(mode="json", exclude_computed_fields=True))
-    return [
-        FieldChange(field=key, baseline=a.get(key), config=b.get(key))
-        for key in sorted(set(a) | set(b))
-        if key not in IGNORED_FIELDS and a.get(key) != b.get(key)
-    ]
 
 
 def resolve_spec(sheet: PredictionSheet, name: str) -> ContactCase | FrictionCase:

@@ -7,7 +7,7 @@ sample count, resting height) are computed properties, so a spec can never contr
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal, Union
+from typing import Annotated, Any, Literal, Union
 
 from pydantic import (
     BaseModel,
@@ -291,25 +291,36 @@ def describe_errors(error) -> list[str]:
     return lines
 
 
-def changed_fields(a: BaseModel, b: BaseModel) -> list[str]:
-    """Dotted paths of the input fields whose values differ between two specs ('name' excluded).
-
-    The one-factor rule reads this: N1 -> N2 may differ only in 'substeps'.
-    """
-    da = a.model_dump(mode="json", exclude_computed_fields=True, exclude={"name"})
-    db = b.model_dump(mode="json", exclude_computed_fields=True, exclude={"name"})
-    return _diff(da, db, "")
+# Not compared by the one-factor rule: a case's label, and whether a camera watched it (evidence, not physics).
+IGNORED_FIELDS = {"name", "render"}
 
 
-def _diff(a, b, prefix: str) -> list[str]:
-    if isinstance(a, dict) and isinstance(b, dict):
-        out = []
-        for key in sorted(set(a) | set(b)):
-            out += _diff(a.get(key), b.get(key), f"{prefix}{key}.")
+class FieldChange(BaseModel):
+    field: str
+    baseline: Any
+    config: Any
+
+
+def _flatten(value: Any, prefix: str = "") -> dict[str, Any]:
+    if isinstance(value, dict):
+        out = {}
+        for key, item in value.items():
+            out |= _flatten(item, f"{prefix}{key}.")
         return out
-    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b) and all(isinstance(x, dict) for x in a + b):
-        out = []
-        for i, (x, y) in enumerate(zip(a, b)):
-            out += _diff(x, y, f"{prefix}{i}.")
+    if isinstance(value, list) and value and isinstance(value[0], dict):
+        out = {}
+        for i, item in enumerate(value):
+            out |= _flatten(item, f"{prefix}{i}.")
         return out
-    return [] if a == b else [prefix.rstrip(".")]
+    return {prefix[:-1]: value}
+
+
+def field_changes(baseline: ContactCase | FrictionCase, config: ContactCase | FrictionCase) -> list[FieldChange]:
+    """Every input field whose value differs (dotted paths like `table.friction`, `lanes.0.friction`)."""
+    a = _flatten(baseline.model_dump(mode="json", exclude_computed_fields=True))
+    b = _flatten(config.model_dump(mode="json", exclude_computed_fields=True))
+    return [
+        FieldChange(field=key, baseline=a.get(key), config=b.get(key))
+        for key in sorted(set(a) | set(b))
+        if key not in IGNORED_FIELDS and a.get(key) != b.get(key)
+    ]

@@ -16,7 +16,7 @@ from click.testing import CliRunner
 from grader.cli import grade as grade_module
 from grader.cli.grade import grade
 from rubric import CaseResult, GradeReport, load_rubric
-from rubric.sheet import field_changes
+from rubric import field_changes
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "l03"
 REFERENCE = yaml.safe_load((EXAMPLES / "reference.yaml").read_text())

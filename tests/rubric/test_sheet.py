@@ -10,7 +10,8 @@ import yaml
 from pydantic import ValidationError
 
 from rubric import BASELINE_CASES, describe_errors, load_rubric, one_factor_findings, parse_sheet
-from rubric.sheet import Answers, Configs, field_changes
+from rubric import field_changes
+from rubric.sheet import Answers, Configs
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "l03"
 

@@ -5,7 +5,7 @@ import json
 import pytest
 from pydantic import ValidationError
 
-from rubric import BASELINE_CASES, changed_fields, describe_errors, get_case, parse_case
+from rubric import BASELINE_CASES, describe_errors, field_changes, get_case, parse_case
 
 
 def errors_for(**fields) -> list[str]:
@@ -88,10 +88,15 @@ def test_float_step_ratio_within_representation_error_is_accepted():
 def test_shown_spec_round_trips_and_baseline_differs_by_one_factor():
     for spec in BASELINE_CASES.values():
         assert parse_case(json.loads(spec.model_dump_json(exclude_computed_fields=True))) == spec
-    assert changed_fields(get_case("N1"), get_case("N2")) == ["substeps"]
-    assert changed_fields(get_case("N3"), get_case("N4")) == ["substeps"]
-    assert changed_fields(get_case("friction-baseline"), get_case("friction-table-0.30")) == ["table.friction"]
-    assert sorted(changed_fields(get_case("N1"), get_case("N3"))) == ["dt"]
+    def changed(a, b):
+        return [c.field for c in field_changes(get_case(a), get_case(b))]
+
+    assert changed("N1", "N2") == ["substeps"]
+    assert changed("N3", "N4") == ["substeps"]
+    assert changed("friction-baseline", "friction-table-0.30") == ["table.friction"]
+    assert changed("N1", "N3") == ["dt"]
+    change = field_changes(get_case("friction-baseline"), get_case("friction-table-0.30"))[0]
+    assert (change.baseline, change.config) == (0.5, 0.3)
 
 
 def test_step_count_rule_applies_to_the_default_duration():
