@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
+
 import pytest
+
+# Settings are read at import; without this, importing the Celery app would create the embedded broker's folders
+# under the repository's var/ during tests. Tests that need their own data dir still set DATA_DIR themselves.
+os.environ.setdefault("DATA_DIR", tempfile.mkdtemp(prefix="grader-tests-"))
 
 from rubric import BASELINE_CASES, CaseResult
 from worker import run_cases
