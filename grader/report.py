@@ -124,29 +124,6 @@ def provenance_rows(results: Mapping[str, CaseResult]) -> list[dict[str, str]]:
 # ------------------------------------------------------------------------------------------------------ plain text
 
 
-def text_summary(*, verdict: bool, conditions: Iterable, results: Mapping[str, CaseResult]) -> str:
-    """The check as plain text for a terminal: verdict, conditions with evidence, metric and lane tables."""
-    conditions = list(conditions)
-    lines = [verdict_line(verdict, conditions), ""]
-    for c in conditions:
-        lines.append(f"[{'PASS' if c.passed else 'FAIL'}] {c.title}")
-        if c.evidence:
-            lines += [f"       {part}" for part in str(c.evidence).splitlines()]
-    for heading, rows in (("Contact cases", contact_rows(results)), ("Friction lanes", lane_rows(results))):
-        if rows:
-            lines += ["", heading, _text_table(rows)]
-    return "\n".join(lines) + "\n"
-
-
-def _text_table(rows: list[dict[str, str]]) -> str:
-    columns = list(dict.fromkeys(key for row in rows for key in row))
-    widths = {c: max(len(c), *(len(row.get(c, "")) for row in rows)) for c in columns}
-    out = ["  ".join(c.ljust(widths[c]) for c in columns)]
-    out.append("  ".join("-" * widths[c] for c in columns))
-    out += ["  ".join(row.get(c, "").ljust(widths[c]) for c in columns) for row in rows]
-    return "\n".join(line.rstrip() for line in out)
-
-
 # ------------------------------------------------------------------------------------------------------------ HTML
 
 CSS = """
@@ -295,7 +272,6 @@ __all__ = [
     "lane_rows",
     "provenance_rows",
     "render_check_html",
-    "text_summary",
     "verdict_line",
     "write_check_report",
 ]

@@ -12,11 +12,14 @@ import json
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from pydantic_core import PydanticCustomError
+
+if TYPE_CHECKING:  # scoring imports this module; the name is needed for annotations only
+    from .scoring import GradeReport
 
 LESSONS_DIR = Path(__file__).parent / "lessons"
 VERSION_PATTERN = r"^[0-9]+(\.[0-9]+)*$"

@@ -145,20 +145,6 @@ def test_failed_case_keeps_its_row_and_error(tmp_path, measured):
     assert "case ran past 900 s" in text and "Failed cases" in text
 
 
-def test_text_summary_for_the_cli(measured):
-    text = report.text_summary(verdict=False, conditions=CONDITIONS, results=measured)
-    first = text.splitlines()[0]
-    assert first == "L03 CHECK: FAILED \u2014 lowering table friction moves only the low lane"
-    assert "[PASS] every contact case covers 1.5 s" in text
-    assert "[FAIL] lowering table friction moves only the low lane" in text
-    assert "0.410 m > 0.224 m" in text
-    table = text[text.index("Contact cases"):]
-    assert all(re.search(rf"^{name}\s+0\.0[12]\s", table, re.M) for name in ("N1", "N2", "N3", "N4", "N5"))
-    assert "friction-table-0.30  low" in text
-    passed = report.text_summary(verdict=True, conditions=CONDITIONS[:2], results=measured)
-    assert passed.startswith("L03 CHECK: PASSED\n")
-
-
 def test_missing_figure_is_stated(tmp_path, measured):
     text = _write(tmp_path, measured, [tmp_path / "gone.png"])
     assert "figure missing: gone.png" in text

@@ -10,7 +10,7 @@ from datetime import timedelta
 import pytest
 from sqlalchemy.orm import Session
 
-from grader.models import CaseRun, utcnow
+from grader.models import utcnow
 from tests import services
 from tests.integration.helpers import case_runs, events, grades_of, wait_until
 from tests.services import reference_sheet

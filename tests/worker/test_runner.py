@@ -1,6 +1,7 @@
 """The Genesis runner on real Genesis (CPU): isolated and warm modes, provenance, backend refusal, rendering."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -44,7 +45,7 @@ def test_result_carries_full_provenance_and_evidence_files(isolated):
     assert "rendering SKIP" in result.stdout
     out = result.out_dir
     for name in ("spec.json", "arrays.npz", "provenance.json", "stdout.txt", "stderr.txt"):
-        assert (pytest.importorskip("pathlib").Path(out) / name).exists(), name
+        assert (Path(out) / name).exists(), name
     # The arrays load back without pickle, and the frames are explicit empty fields.
     with np.load(f"{out}/arrays.npz", allow_pickle=False) as npz:
         assert npz["frame_initial"].shape == (0, 0, 3) and npz["z"].shape == (150,)
