@@ -20,13 +20,11 @@ from rubric import ContactCase, FrictionCase
 from rubric.friction import effective_pair_friction
 from rubric.results import RUNNER_VERSION
 
-from .errors import ProvenanceError, RenderError
+from .errors import EXIT_OK, EXIT_PROVENANCE, EXIT_RENDER, ProvenanceError, RenderError
 
 # Requested backend -> the Genesis backend asked for explicitly. Never gs.gpu: in 1.3.3 it falls back to CPU
 # with only a warning (genesis/__init__.py, init).
 GENESIS_BACKENDS = {"cpu": "cpu", "rocm": "amdgpu", "cuda": "cuda"}
-
-EXIT_OK, EXIT_ERROR, EXIT_PROVENANCE, EXIT_RENDER = 0, 1, 3, 4
 
 _state: dict = {"key": None, "import_s": 0.0, "init_s": 0.0}
 

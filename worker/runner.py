@@ -22,7 +22,8 @@ import numpy as np
 
 from rubric import CaseResult, ContactCase, FrictionCase, Provenance, validate_arrays
 
-EXIT_PROVENANCE, EXIT_RENDER = 3, 4
+from .errors import EXIT_PROVENANCE, EXIT_RENDER
+
 DEFAULT_TIMEOUT_S = 900.0
 WARM_MAX_CASES = 50
 EVIDENCE_FILES = ("arrays.npz", "arrays.tmp.npz", "provenance.json", "stdout.txt", "stderr.txt")

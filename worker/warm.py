@@ -24,7 +24,8 @@ def _redirect(stdout_path: str, stderr_path: str) -> None:
 
 
 def main(reply_fd: int) -> int:
-    from .engine import EXIT_ERROR, execute
+    from .engine import execute
+    from .errors import EXIT_ERROR
 
     reply = os.fdopen(reply_fd, "w", buffering=1)
     for line in sys.stdin:
