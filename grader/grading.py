@@ -36,6 +36,7 @@ def stored_result(run: CaseRun):
     import numpy as np
 
     from rubric import CaseResult, Provenance, parse_case
+    from rubric.metrics import parse_metrics
 
     spec = parse_case(run.spec)
     provenance = Provenance.model_validate(run.provenance) if run.provenance else None
@@ -44,8 +45,9 @@ def stored_result(run: CaseRun):
                           error=run.error or f"case run ended {run.status}", out_dir=run.artifact_dir)
     with np.load(Path(run.artifact_dir) / "arrays.npz", allow_pickle=False) as npz:
         arrays = {name: npz[name] for name in npz.files}
-    return CaseResult(spec=spec, status="ok", arrays=arrays, provenance=provenance, out_dir=run.artifact_dir,
-                      wall_s=run.wall_s or 0.0)
+    metrics = parse_metrics(run.metrics) if run.metrics else None
+    return CaseResult(spec=spec, status="ok", arrays=arrays, provenance=provenance, metrics=metrics,
+                      out_dir=run.artifact_dir, wall_s=run.wall_s or 0.0)
 
 
 def grade_submission(*, session: Session, submission_id: int) -> Grade | None:

@@ -99,6 +99,8 @@ class CaseRun(Base):
     result_status: Mapped[str | None] = mapped_column(String(16))
     actual_backend: Mapped[str | None] = mapped_column(String(16))
     provenance: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    # The run's metrics, computed once where it ran (rubric.metrics.case_metrics); read by grading and the API.
+    metrics: Mapped[dict[str, Any] | None] = mapped_column(JSON)
     artifact_dir: Mapped[str | None] = mapped_column(Text)
     error: Mapped[str | None] = mapped_column(Text)
     stderr_tail: Mapped[str | None] = mapped_column(Text)
@@ -127,6 +129,7 @@ class Measurement(Base):
     case_run_id: Mapped[int] = mapped_column(Integer)
     backend: Mapped[str] = mapped_column(String(8))
     provenance: Mapped[dict[str, Any]]
+    metrics: Mapped[dict[str, Any] | None] = mapped_column(JSON)
     artifact_dir: Mapped[str] = mapped_column(Text)
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
 

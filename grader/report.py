@@ -13,7 +13,8 @@ import os
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-from rubric import CaseResult, ContactCase, FrictionCase, contact_metrics, lane_metrics
+from rubric import CaseResult, ContactCase, FrictionCase
+from rubric.check import verdict_line
 
 NOT_STOPPED = "not stopped within the measured window"
 REPORT_NAME = "report.html"
@@ -21,12 +22,8 @@ REPORT_NAME = "report.html"
 # ------------------------------------------------------------------------------------------- rows (shared data)
 
 
-def verdict_line(verdict: bool, conditions: Iterable = ()) -> str:
-    """'L03 CHECK: PASSED', or 'L03 CHECK: FAILED' naming each failed condition, as the lesson asks."""
-    if verdict:
-        return "L03 CHECK: PASSED"
-    failed = [str(c.title) for c in conditions if not c.passed]
-    return "L03 CHECK: FAILED" + (" \u2014 " + "; ".join(failed) if failed else "")
+def _verdict(verdict: bool, conditions: Iterable = ()) -> str:
+    return verdict_line(verdict, [str(c.title) for c in conditions if not c.passed])
 
 
 def _num(value: float | None, fmt: str, scale: float = 1.0) -> str:
@@ -45,7 +42,7 @@ def contact_rows(results: Mapping[str, CaseResult]) -> list[dict[str, str]]:
         if not (r.ok and r.arrays):
             rows.append(row | {"status": r.status})
             continue
-        m = contact_metrics(s, r.arrays)
+        m = r.metrics
         rows.append(row | {
             "samples": str(m.n_samples),
             "penetration proxy (mm)": _num(m.penetration_proxy, ".2f", 1e3),
@@ -70,13 +67,14 @@ def lane_rows(results: Mapping[str, CaseResult]) -> list[dict[str, str]]:
             rows.append({"run": r.spec.name, "lane": "\u2014", "status": r.status})
             continue
         for lane in r.spec.lanes:
-            m = lane_metrics(r.spec, r.arrays, lane.name)
+            m = r.metrics.lane(lane.name)
             rows.append({
                 "run": r.spec.name,
                 "lane": lane.name,
                 "table \u03bc": f"{m.table_friction:.2f}",
                 "cube \u03bc": f"{m.cube_friction:.2f}",
-                "effective pair \u03bc": f"{m.pair_friction:.2f}",
+                "effective pair \u03bc (engine)": _num(m.pair_friction, ".2f")
+                + ("" if m.pair_friction_agrees else f" \u2260 rule {m.pair_friction_rule:.2f}"),
                 "stop time (s)": _num(m.stop.time, ".2f") if m.stop.stopped else NOT_STOPPED,
                 "stop distance (m)": _num(m.stop.distance, ".3f") if m.stop.stopped else NOT_STOPPED,
                 "final displacement (m)": f"{m.final_displacement:.3f}",
@@ -209,7 +207,7 @@ def _header(verdict: bool, conditions: list, results: Mapping[str, CaseResult], 
     meta = (f"cases: {', '.join(results)} | actual backend: {', '.join(backends) or 'n/a'} | "
             f"genesis {', '.join(versions) or 'version unknown'}")
     return (f"<h1>{_e(title)}</h1><p class='meta'>{_e(meta)}</p>"
-            f"<div class='verdict {cls}'>{_e(verdict_line(verdict, conditions))}</div>")
+            f"<div class='verdict {cls}'>{_e(_verdict(verdict, conditions))}</div>")
 
 
 def _errors_html(results: Mapping[str, CaseResult]) -> str:
@@ -242,7 +240,9 @@ def render_check_html(*, verdict: bool, conditions: Iterable, results: Mapping[s
         "and clearance above the declared tolerance after first contact; their duration is quantized by dt.</p>",
         _html_table(contact_rows(results)),
         "<h2>Part B: friction lanes</h2>",
-        "<p class='meta'>effective pair \u03bc = max(table \u03bc, cube \u03bc), the Genesis 1.3.3 rule. A stop is the "
+        "<p class='meta'>effective pair \u03bc: the sliding friction the engine assigned to each lane's cube-table "
+        "contacts, read from its contact data and cross-checked against the Genesis 1.3.3 rule max(table \u03bc, cube "
+        "\u03bc) (a disagreement is shown as \u2260 rule). A stop is the "
         "first sample of a full hold interval with |vx| below the declared stop speed.</p>",
         _html_table(lane_rows(results), cell_prefix=swatch),
         "<h2>Provenance</h2>", _html_table(provenance_rows(results)),
@@ -251,7 +251,7 @@ def render_check_html(*, verdict: bool, conditions: Iterable, results: Mapping[s
         *(_figure_html(Path(p), out_dir, embed=embed) for p in figures),
     ]
     return ("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
-            f"<title>{_e(verdict_line(verdict, conditions))}</title><style>{CSS}</style></head><body>"
+            f"<title>{_e(_verdict(verdict, conditions))}</title><style>{CSS}</style></head><body>"
             + "\n".join(body) + "</body></html>\n")
 
 
@@ -272,6 +272,5 @@ __all__ = [
     "lane_rows",
     "provenance_rows",
     "render_check_html",
-    "verdict_line",
     "write_check_report",
 ]

@@ -81,6 +81,7 @@ def execute(*, session: Session, case_run_id: int, attempt: int, runner: Callabl
     if measurement is not None:
         run.measurement_id, run.reused_from_id = measurement.id, measurement.case_run_id
         run.provenance, run.artifact_dir = measurement.provenance, measurement.artifact_dir
+        run.metrics = measurement.metrics
         run.actual_backend, run.result_status = measurement.backend, "ok"
         detail = f"reused measurement {measurement.id} of case run {measurement.case_run_id}"
         return run.submission_id if _finish(session, run, status="done", detail=detail) else None
@@ -101,6 +102,7 @@ def store_result(*, session: Session, run: CaseRun, result) -> bool:
     provenance = result.provenance.model_dump(mode="json") if result.provenance else None
     run.result_status, run.error, run.wall_s = result.status, result.error, result.wall_s
     run.provenance, run.artifact_dir = provenance, result.out_dir
+    run.metrics = result.metrics.model_dump(mode="json") if result.metrics is not None else None
     run.actual_backend = result.provenance.actual_backend if result.provenance else None
     run.stderr_tail = (result.stderr or "")[-4000:] or None
     if result.ok:
@@ -114,7 +116,8 @@ def _record_measurement(session: Session, run: CaseRun, provenance: dict) -> Non
     try:
         with session.begin_nested():
             m = Measurement(content_key=reuse.content_key(inputs), key_inputs=inputs, case_run_id=run.id,
-                            backend=run.actual_backend, provenance=provenance, artifact_dir=run.artifact_dir)
+                            backend=run.actual_backend, provenance=provenance, metrics=run.metrics,
+                            artifact_dir=run.artifact_dir)
             session.add(m)
         run.measurement_id = m.id
     except IntegrityError:

@@ -63,6 +63,7 @@ class CaseRunPublic(BaseModel):
     wall_s: float | None
     spec: dict[str, Any]
     provenance: dict[str, Any] | None
+    metrics: dict[str, Any] | None = Field(description="Metrics computed once where the case ran (rubric.metrics)")
     queued_at: datetime
     started_at: datetime | None
     finished_at: datetime | None

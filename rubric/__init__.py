@@ -3,18 +3,40 @@
 Imports numpy and pydantic only, never Genesis, torch, a database, Celery or a web framework.
 """
 
-from .cases import BASELINE_CASES, CHECK_CASES, CONTACT_CASES, FRICTION_CASES, get_case, with_backend
+from .cases import BASELINE_CASES, CHECK_CASES, COLOR_SWAP, CONTACT_CASES, FRICTION_CASES, get_case, with_backend
 from .friction import effective_pair_friction
-from .metrics import Alignment, ContactMetrics, LaneMetrics, Stop, align, contact_metrics, lane_metrics, sustained_stop
-from .results import CaseResult, Provenance, expected_arrays, validate_arrays
+from .metrics import (
+    Alignment,
+    ContactMetrics,
+    FrictionMetrics,
+    LaneMetrics,
+    Stop,
+    align,
+    case_metrics,
+    contact_metrics,
+    lane_metrics,
+    parse_metrics,
+    separation_mask,
+    sustained_stop,
+)
+from .results import CaseResult, Discretization, Provenance, expected_arrays, validate_arrays
 from .specs import CaseSpec, ContactCase, FieldChange, FrictionCase, describe_errors, field_changes, parse_case
 
 from .exports import grades_csv, gradescope_results
-from .rubrics import RegradePreview, Rubric, RubricGovernanceError, load_rubric, publish_version, regrade_preview
-from .scoring import GradeReport, ItemGrade, cases_to_run, grade_sheet
-from .sheet import ConfigFinding, PredictionSheet, one_factor_findings, parse_sheet
+from .governance import RegradePreview, RubricGovernanceError, publish_version, regrade_preview
+from .one_factor import ConfigFinding, one_factor_findings
+from .rubrics import Rubric, load_rubric
+from .scoring import ArchivedRubric, GradeReport, ItemGrade, cases_to_run, grade_sheet
+from .sheet import PredictionSheet, parse_sheet
 
 __all__ = [
+    "ArchivedRubric",
+    "COLOR_SWAP",
+    "Discretization",
+    "FrictionMetrics",
+    "case_metrics",
+    "parse_metrics",
+    "separation_mask",
     "BASELINE_CASES",
     "CHECK_CASES",
     "CONTACT_CASES",

@@ -13,6 +13,8 @@ _CONTACT = {
     "N5": (0.01, 4),
 }
 
+COLOR_SWAP = "friction-baseline-colors-swapped"
+
 BASELINE_CASES: dict[str, ContactCase | FrictionCase] = {
     name: ContactCase(name=name, dt=dt, substeps=substeps) for name, (dt, substeps) in _CONTACT.items()
 }
@@ -21,6 +23,14 @@ BASELINE_CASES["friction-baseline"] = FrictionCase(name="friction-baseline")
 BASELINE_CASES["friction-table-0.30"] = FrictionCase(
     name="friction-table-0.30",
     table=BASELINE_CASES["friction-baseline"].table.model_copy(update={"friction": 0.30}),
+)
+
+# The colour control: the baseline with the two lanes' Surface colours swapped. Colour is visual, so grading expects
+# the same physics; the run measures it instead of asserting it.
+_baseline = BASELINE_CASES["friction-baseline"]
+BASELINE_CASES[COLOR_SWAP] = FrictionCase(
+    name=COLOR_SWAP,
+    lanes=[lane.model_copy(update={"color": other.color}) for lane, other in zip(_baseline.lanes, _baseline.lanes[::-1])],
 )
 
 CONTACT_CASES = ("N1", "N2", "N3", "N4")
@@ -45,4 +55,4 @@ def with_backend(case, *, backend: str, render: bool | None = None):
     return type(case).model_validate({**case.model_dump(exclude_computed_fields=True), **update})
 
 
-__all__ = ["BASELINE_CASES", "CHECK_CASES", "CONTACT_CASES", "FRICTION_CASES", "Table", "get_case", "with_backend"]
+__all__ = ["BASELINE_CASES", "CHECK_CASES", "COLOR_SWAP", "CONTACT_CASES", "FRICTION_CASES", "Table", "get_case", "with_backend"]

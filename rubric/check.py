@@ -9,13 +9,15 @@ and the grade can never judge one relationship under two different ranges.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 import numpy as np
 from pydantic import BaseModel
 
 from .cases import CONTACT_CASES, get_case
-from .metrics import Alignment, ContactMetrics, LaneMetrics, align, contact_metrics, lane_metrics
-from .results import FRAME_FIELDS, CaseResult
+from .metrics import Alignment, ContactMetrics, LaneMetrics, align
+from .relations import cases_agree, lanes_by_pair, proxy_change, stop_change
+from .results import FRAME_FIELDS, CaseResult, discretization_problems
 from .rubrics import Rubric, load_rubric
 from .specs import field_changes
 
@@ -29,6 +31,14 @@ LESSON_TIMING = {
 }
 LESSON_DURATION_S = 1.5
 BASELINE, TABLE_030 = "friction-baseline", "friction-table-0.30"
+
+
+def verdict_line(passed: bool, failed: Iterable[str] = ()) -> str:
+    """The lesson's verdict: 'L03 CHECK: PASSED', or 'L03 CHECK: FAILED', optionally naming the failed conditions."""
+    if passed:
+        return "L03 CHECK: PASSED"
+    failed = list(failed)
+    return "L03 CHECK: FAILED" + (" \u2014 " + "; ".join(failed) if failed else "")
 
 
 class Condition(BaseModel):
@@ -73,7 +83,7 @@ class CheckReport(BaseModel):
         return [c for c in self.conditions if not c.passed]
 
     def verdict_line(self) -> str:
-        return "L03 CHECK: PASSED" if self.passed else "L03 CHECK: FAILED"
+        return verdict_line(self.passed)
 
     def render_text(self) -> str:
         lines = []
@@ -94,13 +104,8 @@ def evaluate(results: dict[str, CaseResult], *, outputs: OutputLocation, rubric:
     """
     tol = _Tolerances(rubric or load_rubric("L03"))
     ok = {name: r for name, r in results.items() if r.ok}
-    contact = {n: contact_metrics(ok[n].spec, ok[n].arrays) for n in CONTACT_CASES if n in ok}
-    lanes = [
-        lane_metrics(ok[name].spec, ok[name].arrays, lane.name)
-        for name in (BASELINE, TABLE_030)
-        if name in ok
-        for lane in ok[name].spec.lanes
-    ]
+    contact = {n: ok[n].metrics for n in CONTACT_CASES if n in ok}
+    lanes = [m for name in (BASELINE, TABLE_030) if name in ok for m in ok[name].metrics.lanes.values()]
     alignment = align("N1", ok["N1"].arrays, "N4", ok["N4"].arrays) if {"N1", "N4"} <= set(ok) else None
     conditions = [
         _processes(results),
@@ -191,20 +196,22 @@ def _arrays(results) -> Condition:
 
 
 def _duration(results, ok) -> Condition:
+    """Read from what the engine reported (provenance) and from the sampled time axis itself, not from the spec."""
     lines, passed = _missing(results, CONTACT_CASES), not _missing(results, CONTACT_CASES)
     counts = {}
     for name in CONTACT_CASES:
         if name not in ok:
             continue
-        spec, t = ok[name].spec, ok[name].arrays["t"]
-        covered = spec.n_steps * spec.dt
-        good = math.isclose(covered, LESSON_DURATION_S, rel_tol=1e-9) and math.isclose(float(t[-1]), LESSON_DURATION_S, rel_tol=1e-9)
+        d, t = ok[name].provenance.discretization, ok[name].arrays["t"]
+        problems = discretization_problems(ok[name].spec, d, t)
+        good = not problems and math.isclose(d.duration, LESSON_DURATION_S, rel_tol=1e-9)
         counts[name] = len(t)
         passed &= good
-        lines.append(f"{name}: {len(t)} samples x dt {spec.dt} = {covered:.4f} s (last sample t={float(t[-1]):.4f} s)")
+        lines.append(f"{name}: engine ran {d.n_steps} outer steps x dt {d.dt:g} s = {d.duration:.4f} s; {len(t)} samples "
+                     f"from t={float(t[0]):.4f} to {float(t[-1]):.4f} s" + "".join(f"; {p}" for p in problems))
     by_dt = {}
     for name, n in counts.items():
-        by_dt.setdefault(ok[name].spec.dt, set()).add(n)
+        by_dt.setdefault(ok[name].provenance.discretization.dt, set()).add(n)
     if len(by_dt) < 2 or any(len(v) != 1 for v in by_dt.values()) or len({min(v) for v in by_dt.values()}) != len(by_dt):
         passed = False
         lines.append(f"sample count does not change with dt as expected: {by_dt}")
@@ -219,15 +226,15 @@ def _timing_table(ok) -> Condition:
             passed = False
             lines.append(f"{name}: no result")
             continue
-        spec = ok[name].spec
-        got = dict(dt=spec.dt, substeps=spec.substeps, substep_dt=spec.substep_dt, samples=spec.sample_count,
-                   internal_updates=spec.internal_updates)
+        d = ok[name].provenance.discretization
+        got = dict(dt=d.dt, substeps=d.substeps, substep_dt=d.substep_dt, samples=d.sample_count,
+                   internal_updates=d.internal_updates)
         good = all(math.isclose(got[k], v, rel_tol=1e-9) for k, v in expected.items())
         passed &= good
-        lines.append(f"{name}: substep_dt={spec.substep_dt:g} s, internal updates={spec.internal_updates}"
-                     + ("" if good else f"  (lesson table: {expected})"))
+        lines.append(f"{name}: engine substep_dt={d.substep_dt:g} s, internal updates={d.internal_updates}, "
+                     f"samples={d.sample_count}" + ("" if good else f"  (lesson table: {expected})"))
     return Condition(id="timing_table", passed=passed, evidence="\n".join(lines),
-                     title="computed substep_dt and internal update counts match the case table")
+                     title="substep_dt and internal update counts reported by the engine match the case table")
 
 
 def _contact(contact: dict[str, ContactMetrics], ok) -> Condition:
@@ -254,15 +261,10 @@ def _substeps_reduce_proxy(contact, tol: "_Tolerances") -> Condition:
             passed = False
             lines.append(f"{coarse} vs {fine}: missing result")
             continue
-        a, b = contact[coarse].penetration_proxy, contact[fine].penetration_proxy
-        # A proxy means nothing for a cube that never touched the table or fell through it.
-        valid = all(contact[n].first_contact_index is not None and not contact[n].passed_through for n in (coarse, fine))
-        good = valid and a - b > tol["proxy_resolution"]
-        if not valid:
-            lines.append(f"{coarse} vs {fine}: no valid contact in both cases, so the proxy comparison is meaningless")
-        passed &= good
-        lines.append(f"dt={contact[coarse].dt:g}: {coarse} proxy {a * 1000:.3f} mm -> {fine} proxy {b * 1000:.3f} mm "
-                     f"(decrease {(a - b) * 1000:.3f} mm; must exceed {tol.show('proxy_resolution')})")
+        change = proxy_change(contact[coarse], contact[fine], tol["proxy_resolution"])
+        passed &= change.direction == "decrease"
+        lines.append(f"dt={contact[coarse].dt:g}: {change.describe()}; a decrease must exceed "
+                     f"{tol.show('proxy_resolution')}")
     return Condition(id="substeps_reduce_proxy", passed=passed, evidence="\n".join(lines),
                      title="at fixed dt, the finer internal timestep reduces the penetration proxy")
 
@@ -272,12 +274,8 @@ def _n1_n4(alignment: Alignment | None, tol: "_Tolerances") -> Condition:
     if alignment is None:
         return Condition(id="n1_n4_agree", title=title, passed=False, evidence="N1 or N4 has no result")
     dz, dvz = alignment.max_abs_diff["z"], alignment.max_abs_diff["vz"]
-    passed = (
-        alignment.shared_samples > 0
-        and alignment.samples_a != alignment.samples_b
-        and dz <= tol["n1_n4_max_dz"]
-        and dvz <= tol["n1_n4_max_dvz"]
-    )
+    passed = alignment.samples_a != alignment.samples_b and cases_agree(
+        alignment, dz_tol=tol["n1_n4_max_dz"], dvz_tol=tol["n1_n4_max_dvz"])
     evidence = (
         f"samples N1={alignment.samples_a}, N4={alignment.samples_b}; {alignment.shared_samples} shared times "
         f"({', '.join(f'{t:g}' for t in alignment.first_shared_times)}, ...)\n"
@@ -304,14 +302,12 @@ def _multi_evidence(contact) -> Condition:
                      title="the interpretation reads trajectory, contact, clearance and settling evidence together")
 
 
-def _lane(lanes: list[LaneMetrics], case: str, lane: str) -> LaneMetrics | None:
-    return next((m for m in lanes if m.case == case and m.lane == lane), None)
-
-
 def _lane_line(m: LaneMetrics) -> str:
     stop = f"stops after {m.stop.distance:.4f} m at t={m.stop.time:.2f} s" if m.stop.stopped else m.stop.detail
-    return (f"{m.case} / {m.lane}: table {m.table_friction:g}, cube {m.cube_friction:g} -> pair "
-            f"{m.pair_friction:g}; {stop}; max |omega| {m.max_abs_omega:.2f} rad/s"
+    agree = "" if m.pair_friction_agrees else f" DISAGREES with the pair rule's {m.pair_friction_rule:g}"
+    pair = "none (no contact reported)" if m.pair_friction is None else f"{m.pair_friction:g}"
+    return (f"{m.case} / {m.lane}: table {m.table_friction:g}, cube {m.cube_friction:g} -> engine pair "
+            f"{pair}{agree}; {stop}; max |omega| {m.max_abs_omega:.2f} rad/s"
             + ("" if m.stayed_on_table else "; LEFT THE TABLE"))
 
 
@@ -319,13 +315,14 @@ def _friction_baseline(lanes, ok, tol: "_Tolerances") -> Condition:
     title = "in the baseline friction run, the low-effective-friction lane travels farther before sustained stopping"
     if BASELINE not in ok:
         return Condition(id="friction_baseline", title=title, passed=False, evidence=f"{BASELINE}: no result")
-    base = [m for m in lanes if m.case == BASELINE]
-    low, high = min(base, key=lambda m: m.pair_friction), max(base, key=lambda m: m.pair_friction)
+    base = list(ok[BASELINE].metrics.lanes.values())
+    low, high = lanes_by_pair(ok[BASELINE].metrics)
     lines = [_lane_line(m) for m in base]
     speed = ok[BASELINE].spec.initial_speed
     passed = low is not high and all(m.stayed_on_table for m in base)
     passed &= all(abs(m.initial_vx - speed) <= tol["initial_speed_match"] for m in base)
-    passed &= all(abs(m.pair_friction_recorded - m.pair_friction) < 1e-9 for m in base)
+    # The engine's contact friction must agree with the Python copy of its rule; a disagreement fails visibly.
+    passed &= all(m.pair_friction_agrees for m in base)
     if low.stop.stopped and high.stop.stopped:
         margin = low.stop.distance - high.stop.distance
         passed &= margin > tol["stop_distance_resolution"]
@@ -346,13 +343,15 @@ def _table_change(lanes, ok, tol: "_Tolerances") -> Condition:
     passed = changed == ["table.friction"]
     lines = [f"fields changed between runs: {changed or 'none'}" + ("" if passed else " (only table.friction may change)")]
     for lane in ok[BASELINE].spec.lanes:
-        before, after = _lane(lanes, BASELINE, lane.name), _lane(lanes, TABLE_030, lane.name)
+        before, after = ok[BASELINE].metrics.lane(lane.name), ok[TABLE_030].metrics.lane(lane.name)
         lines.append(_lane_line(after))
-        if not (before.stop.stopped and after.stop.stopped):
+        passed &= after.pair_friction_agrees
+        delta = stop_change(before, after)
+        if delta is None or before.pair_friction is None or after.pair_friction is None:
             passed = False
-            lines.append(f"{lane.name}: not stopped within the measured window in one run; no distance to compare")
+            lines.append(f"{lane.name}: not stopped within the measured window, or never in contact, in one run; "
+                         "no distance to compare")
             continue
-        delta = after.stop.distance - before.stop.distance
         if after.pair_friction < before.pair_friction:
             good = delta > tol["stop_distance_resolution"]
             lines.append(f"{lane.name}: pair {before.pair_friction:g} -> {after.pair_friction:g}, stop distance "

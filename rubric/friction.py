@@ -13,7 +13,6 @@ Genesis rejects a material friction below 0.01 (genesis/engine/materials/rigid.p
 
 from __future__ import annotations
 
-ENGINE_VERSION = "1.3.3"
 PAIR_FRICTION_FLOOR = 1e-2
 
 

@@ -8,15 +8,17 @@ where a full hold interval stays below the declared speed.
 from __future__ import annotations
 
 import math
+from typing import Annotated, Literal, Union
 
 import numpy as np
-from pydantic import BaseModel
+from pydantic import BaseModel, Field, TypeAdapter
 
 from .friction import effective_pair_friction
 from .specs import ContactCase, FrictionCase
 
 
 class ContactMetrics(BaseModel):
+    kind: Literal["contact"] = "contact"
     case: str
     n_samples: int
     dt: float
@@ -68,8 +70,13 @@ class LaneMetrics(BaseModel):
     lane: str
     table_friction: float
     cube_friction: float
-    pair_friction: float
-    pair_friction_recorded: float
+    # The value the engine assigned to this lane's cube-table contacts (None: no contact was ever reported) ...
+    pair_friction: float | None
+    # ... every distinct value it assigned (one, unless the engine treats contacts of one pair differently) ...
+    pair_friction_values: list[float]
+    # ... and the Python copy of the engine's rule (rubric.friction), a cross-check whose disagreement is visible.
+    pair_friction_rule: float
+    pair_friction_agrees: bool
     initial_vx: float
     stop: Stop
     final_displacement: float
@@ -90,7 +97,7 @@ def contact_metrics(spec: ContactCase, arrays: dict[str, np.ndarray]) -> Contact
     first = int(contact_idx[0]) if contact_idx.size else None
 
     after = slice(first, None) if first is not None else slice(0, 0)
-    separated = (~in_contact[after]) & (clearance[after] > spec.separation_tolerance)
+    separated = separation_mask(spec, arrays)[after]
     upward = vz[after] > spec.upward_speed_tolerance
 
     tail = t >= t[-1] - spec.tail_window + 1e-12
@@ -123,6 +130,14 @@ def contact_metrics(spec: ContactCase, arrays: dict[str, np.ndarray]) -> Contact
         # Centre below the table top: the cube is (at least half) through the table, not resting on it.
         passed_through=bool(z.min() < spec.table.top_z),
     )
+
+
+def separation_mask(spec: ContactCase, arrays: dict[str, np.ndarray]) -> np.ndarray:
+    """Samples of observed geometric separation: no reported contact AND bottom clearance above the declared tolerance.
+
+    Either signal alone is not separation: a zero contact count can occur while the cube still rests on the table.
+    """
+    return (arrays["contact_count"] == 0) & (arrays["clearance"] > spec.separation_tolerance)
 
 
 def penetration_proxy(z: np.ndarray, expected_center_z: float) -> float:
@@ -182,19 +197,29 @@ def sustained_stop(t: np.ndarray, x: np.ndarray, vx: np.ndarray, *, stop_speed: 
     return Stop(stopped=False, detail=f"not stopped within the measured window (0 to {t[-1]:.2f} s)")
 
 
+# float32 engine values vs the float64 rule: 0.3 is stored as 0.30000001.
+PAIR_FRICTION_MATCH = 1e-6
+
+
 def lane_metrics(spec: FrictionCase, arrays: dict[str, np.ndarray], lane: str) -> LaneMetrics:
     spec_lane = next(item for item in spec.lanes if item.name == lane)
     t, x, vx = arrays["t"], arrays[f"{lane}_x"], arrays[f"{lane}_vx"]
     tx, sx = spec.table.pos[0], spec.table.size[0]
     z = arrays[f"{lane}_z"]
     on_x = (x >= tx - sx / 2) & (x <= tx + sx / 2)
+    in_contact = arrays[f"{lane}_contact_count"] > 0
+    values = sorted({round(float(v), 7) for v in arrays[f"{lane}_contact_friction"][in_contact]})
+    table_mu, cube_mu = float(arrays[f"{lane}_table_friction"]), float(arrays[f"{lane}_cube_friction"])
+    rule = effective_pair_friction(table_mu, cube_mu)
     return LaneMetrics(
         case=spec.name,
         lane=lane,
-        table_friction=spec.table.friction,
-        cube_friction=spec_lane.friction,
-        pair_friction=effective_pair_friction(spec.table.friction, spec_lane.friction),
-        pair_friction_recorded=float(arrays[f"{lane}_pair_friction"]),
+        table_friction=table_mu,
+        cube_friction=cube_mu,
+        pair_friction=max(values) if values else None,
+        pair_friction_values=values,
+        pair_friction_rule=rule,
+        pair_friction_agrees=bool(values) and all(abs(v - rule) <= PAIR_FRICTION_MATCH for v in values),
         initial_vx=float(vx[0]),
         stop=sustained_stop(t, x, vx, stop_speed=spec.stop_speed, hold_steps=spec.hold_steps),
         final_displacement=float(x[-1] - x[0]),
@@ -202,3 +227,27 @@ def lane_metrics(spec: FrictionCase, arrays: dict[str, np.ndarray], lane: str) -
         # Centre over the table and not fallen below its top: the lane's geometry held for the whole run.
         stayed_on_table=bool(on_x.all() and (z > spec.table.top_z).all()),
     )
+
+
+class FrictionMetrics(BaseModel):
+    kind: Literal["friction"] = "friction"
+    case: str
+    lanes: dict[str, LaneMetrics]
+
+    def lane(self, name: str) -> LaneMetrics:
+        return self.lanes[name]
+
+
+CaseMetrics = Annotated[Union[ContactMetrics, FrictionMetrics], Field(discriminator="kind")]
+
+
+def case_metrics(spec: ContactCase | FrictionCase, arrays: dict[str, np.ndarray]) -> ContactMetrics | FrictionMetrics:
+    """Every metric of one validated case, computed once where the case ran and stored beside its arrays."""
+    if isinstance(spec, ContactCase):
+        return contact_metrics(spec, arrays)
+    return FrictionMetrics(case=spec.name, lanes={lane.name: lane_metrics(spec, arrays, lane.name) for lane in spec.lanes})
+
+
+def parse_metrics(data: dict) -> ContactMetrics | FrictionMetrics:
+    """Stored metrics (metrics.json or a database column) back into their model."""
+    return TypeAdapter(CaseMetrics).validate_python(data)

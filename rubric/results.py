@@ -6,15 +6,18 @@ so nothing downstream ever has to guess whether a missing number means "not run"
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
+from .metrics import ContactMetrics, FrictionMetrics
 from .specs import ContactCase, FrictionCase
 
-RUNNER_VERSION = "1"
+# Bumped whenever the arrays or provenance a case writes change: measurements of another version are not reused.
+RUNNER_VERSION = "2"
 
 Status = Literal["ok", "failed", "invalid", "timeout"]
 
@@ -27,6 +30,21 @@ class Timings(BaseModel):
     build_s: float
     steps_s: float
     render_s: float = 0.0
+
+
+class Discretization(BaseModel):
+    """The lesson's timing quantities as the engine reports them for the measurement window (not the spec's)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    dt: float
+    substeps: int
+    substep_dt: float
+    n_steps: int
+    internal_updates: int
+    duration: float
+    sample_count: int
+    settle_steps: int = 0
 
 
 class Rendering(BaseModel):
@@ -60,6 +78,7 @@ class Provenance(BaseModel):
     host: str
     pid: int
     timings: Timings
+    discretization: Discretization
     rendering: Rendering
     runner_version: str
     exit_status: int
@@ -73,6 +92,8 @@ class CaseResult:
     status: Status
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
     provenance: Provenance | None = None
+    # Computed once from the validated arrays where the case ran (metrics.json beside them); None unless ok.
+    metrics: ContactMetrics | FrictionMetrics | None = None
     error: str | None = None
     stdout: str = ""
     stderr: str = ""
@@ -115,9 +136,10 @@ def expected_arrays(spec: ContactCase | FrictionCase) -> dict[str, tuple[tuple[i
                 f"{p}_vx": ((n,), "f"),
                 f"{p}_omega": ((n, 3), "f"),
                 f"{p}_contact_count": ((n,), "i"),
+                # Sliding friction the engine assigned to the lane's cube-table contacts at each sample (0: none).
+                f"{p}_contact_friction": ((n,), "f"),
                 f"{p}_table_friction": ((), "f"),
                 f"{p}_cube_friction": ((), "f"),
-                f"{p}_pair_friction": ((), "f"),
             }
     for name in FRAME_FIELDS:
         fields[name] = (None, "u")
@@ -160,3 +182,35 @@ def _frame_problems(name: str, frame: np.ndarray, *, render: bool) -> list[str]:
     if frame.max() == frame.min():
         return [f"{name}: frame is a single flat value ({int(frame.max())}); the camera saw nothing"]
     return []
+
+
+def spec_discretization(spec: ContactCase | FrictionCase) -> Discretization:
+    """What the engine should report for `spec`: the lesson's derived quantities computed from its inputs."""
+    return Discretization(
+        dt=spec.dt, substeps=spec.substeps, substep_dt=spec.substep_dt, n_steps=spec.n_steps,
+        internal_updates=spec.internal_updates, duration=spec.duration, sample_count=spec.sample_count,
+        settle_steps=getattr(spec, "settle_steps", 0),
+    )
+
+
+def discretization_problems(spec: ContactCase | FrictionCase, reported: Discretization,
+                            t: np.ndarray | None = None) -> list[str]:
+    """Where the engine's reported discretization, or the sampled time axis, disagrees with the spec.
+
+    Counts must match exactly; times to float precision (the engine accumulates substeps x substep_dt).
+    """
+    problems = []
+    want = spec_discretization(spec)
+    for name, value in want.model_dump().items():
+        got = getattr(reported, name)
+        same = got == value if isinstance(value, int) else math.isclose(got, value, rel_tol=1e-6, abs_tol=1e-12)
+        if not same:
+            problems.append(f"provenance.discretization.{name}: engine reported {got!r}, the spec derives {value!r}")
+    if t is not None and t.ndim == 1 and len(t) >= 2 and np.all(np.isfinite(t)):
+        steps = np.diff(t)
+        if not np.allclose(steps, reported.dt, rtol=1e-6, atol=1e-9):
+            problems.append(f"t: sample spacing {steps.min():.6g}..{steps.max():.6g} s, engine dt {reported.dt:g} s")
+        span = float(t[-1] - t[0]) + (reported.dt if isinstance(spec, ContactCase) else 0.0)
+        if not math.isclose(span, reported.duration, rel_tol=1e-6, abs_tol=1e-9):
+            problems.append(f"t: samples cover {span:.6g} s, engine duration {reported.duration:.6g} s")
+    return problems

@@ -1,7 +1,6 @@
 """Rubrics as data: one reviewed YAML file per lesson version, loaded into an immutable, hashable Rubric.
 
-Governance lives here too (pure functions, no storage): a version that any grade used is immutable, a changed
-tolerance needs a new version with its own review record, and a regrade is previewed per student before commit.
+What may change between versions, and how a regrade is previewed, is rubric.governance.
 """
 
 from __future__ import annotations
@@ -10,16 +9,13 @@ import datetime as dt
 import hashlib
 import json
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Literal
+from typing import Annotated, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from pydantic_core import PydanticCustomError
-
-if TYPE_CHECKING:  # scoring imports this module; the name is needed for annotations only
-    from .scoring import GradeReport
 
 LESSONS_DIR = Path(__file__).parent / "lessons"
 VERSION_PATTERN = r"^[0-9]+(\.[0-9]+)*$"
@@ -72,7 +68,7 @@ class Item(RubricModel):
     kind: ItemKind
     check: Annotated[str, Field(pattern=r"^[a-z][a-z0-9_]*$")]
     tolerances: list[str] = []
-    # Config roles whose submitted spec this item reads: a one-factor violation there decides the item.
+    # Read by v1 only (archived). Since v2 the runs an item's check actually reads decide which config faults void it.
     roles: list[ConfigRole] = []
 
 
@@ -124,7 +120,7 @@ def parse_rubric(data: Mapping) -> Rubric:
     return Rubric.model_validate_json(json.dumps(data, default=str))
 
 
-def _version_key(version: str) -> tuple[int, ...]:
+def version_key(version: str) -> tuple[int, ...]:
     return tuple(int(part) for part in version.split("."))
 
 
@@ -132,7 +128,7 @@ def rubric_versions(lesson: str = "L03") -> list[str]:
     """Versions shipped for a lesson, oldest first (files named LESSON-vVERSION.yaml)."""
     pattern = re.compile(rf"^{re.escape(lesson)}-v([0-9.]+)\.yaml$")
     found = [m.group(1) for p in LESSONS_DIR.glob("*.yaml") if (m := pattern.match(p.name))]
-    return sorted(found, key=_version_key)
+    return sorted(found, key=version_key)
 
 
 def load_rubric(lesson: str = "L03", version: str | None = None) -> Rubric:
@@ -147,125 +143,3 @@ def load_rubric(lesson: str = "L03", version: str | None = None) -> Rubric:
     if (rubric.lesson, rubric.version) != (lesson, version):
         raise ValueError(f"{lesson}-v{version}.yaml declares lesson {rubric.lesson} version {rubric.version}")
     return rubric
-
-
-class RubricGovernanceError(ValueError):
-    """A rubric change that governance forbids (editing a used version, an unreviewed tolerance change)."""
-
-
-def publish_version(new: Rubric, existing: Sequence[Rubric], used_versions: set[str]) -> Rubric:
-    """Accept `new` as a publishable version of its lesson, or raise RubricGovernanceError saying why not.
-
-    - A version id that any grade used is immutable: the same id with different content is refused.
-    - Republishing identical content is a no-op; an unused draft may still be replaced.
-    - A new version needs its own review record, and every tolerance whose value or unit differs from the latest
-      earlier version needs a fresh review (reviewer or date differing from the old record, date not earlier).
-    """
-    same_lesson = [r for r in existing if r.lesson == new.lesson]
-    prior = next((r for r in same_lesson if r.version == new.version), None)
-    if prior is not None:
-        if prior.content_hash == new.content_hash:
-            return prior
-        if new.version in used_versions:
-            raise RubricGovernanceError(
-                f"rubric {new.lesson} version {new.version} is used by existing grades and is immutable "
-                f"(stored hash {prior.content_hash[:12]}, new {new.content_hash[:12]}); "
-                f"changes: {', '.join(rubric_changes(prior, new)) or 'content'}; publish them as a new version"
-            )
-    earlier = [r for r in same_lesson if _version_key(r.version) < _version_key(new.version)]
-    if not earlier:
-        return new
-    previous = max(earlier, key=lambda r: _version_key(r.version))
-    if new.review == previous.review:
-        raise RubricGovernanceError(
-            f"version {new.version} repeats the review record of version {previous.version}; a new version needs its own review"
-        )
-    for name, tol in new.tolerances.items():
-        old = previous.tolerances.get(name)
-        if old is None or (old.value, old.unit) == (tol.value, tol.unit):
-            continue
-        if (tol.reviewer, tol.review_date) == (old.reviewer, old.review_date) or tol.review_date < old.review_date:
-            raise RubricGovernanceError(
-                f"tolerances.{name}: changed {old.value} {old.unit} -> {tol.value} {tol.unit} without a new review "
-                f"(reviewer and date still {old.reviewer}, {old.review_date})"
-            )
-    return new
-
-
-def rubric_changes(old: Rubric, new: Rubric) -> list[str]:
-    """Human-readable differences between two rubric versions (tolerances and item points first)."""
-    changes = []
-    for name in sorted(set(old.tolerances) | set(new.tolerances)):
-        a, b = old.tolerances.get(name), new.tolerances.get(name)
-        if a != b:
-            describe = lambda t: f"{t.value} {t.unit}" if t else "absent"  # noqa: E731
-            changes.append(f"tolerances.{name}: {describe(a)} -> {describe(b)}")
-    old_items, new_items = {i.id: i for i in old.items}, {i.id: i for i in new.items}
-    for item_id in sorted(set(old_items) | set(new_items)):
-        if old_items.get(item_id) != new_items.get(item_id):
-            changes.append(f"items.{item_id}")
-    for field in ("engine_version", "review", "configs"):
-        if getattr(old, field) != getattr(new, field):
-            changes.append(field)
-    return changes
-
-
-class ItemChange(BaseModel):
-    id: str
-    old_score: float | None
-    new_score: float | None
-    old_verdict: str | None
-    new_verdict: str | None
-
-
-class RegradeRow(BaseModel):
-    student: str
-    old_version: str | None
-    new_version: str | None
-    old_score: float | None
-    new_score: float | None
-    old_max: float | None
-    new_max: float | None
-    changed_items: list[ItemChange]
-
-    @property
-    def delta(self) -> float | None:
-        if self.old_score is None or self.new_score is None:
-            return None
-        return self.new_score - self.old_score
-
-
-class RegradePreview(BaseModel):
-    """What a regrade would change, per student, before anything is committed (old grades are always kept)."""
-
-    rows: list[RegradeRow]
-
-    @property
-    def changed(self) -> list[RegradeRow]:
-        return [row for row in self.rows if row.changed_items or row.old_score != row.new_score]
-
-
-def regrade_preview(old: Mapping[str, "GradeReport"], new: Mapping[str, "GradeReport"]) -> RegradePreview:  # noqa: F821
-    """Per student: old and new score and every item whose score or verdict differs (students on either side)."""
-    rows = []
-    for student in sorted(set(old) | set(new)):
-        a, b = old.get(student), new.get(student)
-        a_items = {i.id: i for i in a.items} if a else {}
-        b_items = {i.id: i for i in b.items} if b else {}
-        changed = []
-        for item_id in list(a_items) + [i for i in b_items if i not in a_items]:
-            x, y = a_items.get(item_id), b_items.get(item_id)
-            if x is None or y is None or (x.score, x.verdict) != (y.score, y.verdict):
-                changed.append(ItemChange(
-                    id=item_id,
-                    old_score=x.score if x else None, new_score=y.score if y else None,
-                    old_verdict=x.verdict if x else None, new_verdict=y.verdict if y else None,
-                ))
-        rows.append(RegradeRow(
-            student=student,
-            old_version=a.rubric_version if a else None, new_version=b.rubric_version if b else None,
-            old_score=a.total if a else None, new_score=b.total if b else None,
-            old_max=a.max_total if a else None, new_max=b.max_total if b else None,
-            changed_items=changed,
-        ))
-    return RegradePreview(rows=rows)

@@ -3,7 +3,7 @@
 Strict on purpose: unknown question ids, missing answers, wrong types ("0.5" for a number, "yes" for a boolean) and
 a wrong lesson are errors whose location names the item (e.g. `answers.A3.agree`), never coerced or dropped.
 Every answer may carry a free-text `explanation`, kept for the instructor and never scored.
-The one-factor rule (each submitted config compared field by field with its declared baseline) lives here too.
+The one-factor rule that each submitted config must obey is rubric.one_factor.
 """
 
 from __future__ import annotations
@@ -14,8 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from pydantic_core import PydanticCustomError
 
 from .cases import BASELINE_CASES
-from .rubrics import ConfigRule, Rubric
-from .specs import ContactCase, FieldChange, FrictionCase, field_changes
+from .specs import ContactCase, FrictionCase
 
 CaseName = Literal["N1", "N2", "N3", "N4"]
 LaneName = Literal["low", "high"]
@@ -238,6 +237,10 @@ class PredictionSheet(SheetModel):
     answers: Answers
     configs: Configs
 
+    def spec_for(self, name: str) -> ContactCase | FrictionCase:
+        """A role's spec: the student's own when submitted, else the lesson's baseline case of that name."""
+        return self.configs.submitted().get(name) or BASELINE_CASES[name]
+
     @model_validator(mode="after")
     def _distinct_case_names(self) -> "PredictionSheet":
         names = [spec.name for spec in self.configs.submitted().values()]
@@ -249,54 +252,3 @@ class PredictionSheet(SheetModel):
 def parse_sheet(data: Any) -> PredictionSheet:
     """Validate a sheet from JSON/YAML data; raises pydantic.ValidationError naming each bad item and rule."""
     return PredictionSheet.model_validate(data)
-
-
-# --- the one-factor rule -------------------------------------------------------------------------------------
-
-# Not inputs of the experiment: the label a case is stored under and whether frames are rendered.
-class ConfigFinding(BaseModel):
-    """How one submitted config compares with its declared baseline, field by field."""
-
-    role: str
-    baseline: str
-    may_change: list[str]
-    changes: list[FieldChange]
-    violations: list[FieldChange]
-
-    @property
-    def ok(self) -> bool:
-        return not self.violations
-
-    def describe(self) -> str:
-        if self.ok:
-            changed = ", ".join(f"{c.field} {c.baseline} -> {c.config}" for c in self.changes) or "nothing"
-            return f"{self.role} vs {self.baseline}: one factor ({changed})"
-        lines = "; ".join(f"{c.field}: {c.baseline} -> {c.config}" for c in self.violations)
-        return (f"{self.role} vs {self.baseline}: too many inputs changed at once; only "
-                f"{', '.join(self.may_change) or 'nothing'} may change, but also: {lines}")
-
-
-def resolve_spec(sheet: PredictionSheet, name: str) -> ContactCase | FrictionCase:
-    """A role's spec: the student's own when submitted, else the lesson's baseline case of that name."""
-    submitted = sheet.configs.submitted()
-    if name in submitted:
-        return submitted[name]
-    return BASELINE_CASES[name]
-
-
-def one_factor_findings(sheet: PredictionSheet, rubric: Rubric) -> dict[str, ConfigFinding]:
-    """For every submitted config, the field-by-field comparison with the baseline its rubric rule declares."""
-    findings = {}
-    for role, spec in sheet.configs.submitted().items():
-        rule: ConfigRule = rubric.configs[role]
-        # A role declared against itself (N1 vs N1) is compared with the lesson's case, not with its own copy.
-        base = BASELINE_CASES[rule.baseline] if rule.baseline == role else resolve_spec(sheet, rule.baseline)
-        changes = field_changes(base, spec)
-        findings[role] = ConfigFinding(
-            role=role,
-            baseline=rule.baseline,
-            may_change=rule.may_change,
-            changes=changes,
-            violations=[c for c in changes if c.field not in rule.may_change],
-        )
-    return findings

@@ -7,6 +7,7 @@ sample count, resting height) are computed properties, so a spec can never contr
 from __future__ import annotations
 
 import math
+import re
 from typing import Annotated, Any, Literal, Union
 
 from pydantic import (
@@ -293,12 +294,19 @@ def describe_errors(error) -> list[str]:
 
 # Not compared by the one-factor rule: a case's label, and whether a camera watched it (evidence, not physics).
 IGNORED_FIELDS = {"name", "render"}
+# The visual layer: Surface colours identify objects in plots and frames and are never engine inputs of the physics.
+VISUAL_FIELD = re.compile(r"^(cube\.color|lanes\.[0-9]+\.color)$")
 
 
 class FieldChange(BaseModel):
     field: str
     baseline: Any
     config: Any
+
+    @property
+    def visual(self) -> bool:
+        """A change of the visual layer only (a colour): it cannot confound a physical comparison."""
+        return VISUAL_FIELD.match(self.field) is not None
 
 
 def _flatten(value: Any, prefix: str = "") -> dict[str, Any]:

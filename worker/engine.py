@@ -17,7 +17,6 @@ from pathlib import Path
 import numpy as np
 
 from rubric import ContactCase, FrictionCase
-from rubric.friction import effective_pair_friction
 from rubric.results import RUNNER_VERSION
 
 from .errors import EXIT_OK, EXIT_PROVENANCE, EXIT_RENDER, ProvenanceError, RenderError
@@ -108,6 +107,58 @@ def _frame(camera) -> np.ndarray:
 EMPTY_FRAME = np.zeros((0, 0, 3), dtype=np.uint8)
 
 
+def _clock(scene) -> dict:
+    """The engine's own step, substep and time counters (never the spec's): what the discretization actually was."""
+    return {"steps": scene.t, "substeps": scene.sim.cur_substep_global, "t": scene.sim.cur_t}
+
+
+def _discretization(scene, start: dict, *, samples: int, settle_steps: int = 0) -> dict:
+    """dt, substeps and the derived quantities of the measurement window, read from the built Genesis scene."""
+    end = _clock(scene)
+    return {
+        "dt": float(scene.sim.dt),
+        "substeps": int(scene.sim.substeps),
+        "substep_dt": float(scene.sim._substep_dt),
+        "n_steps": int(end["steps"] - start["steps"]),
+        "internal_updates": int(end["substeps"] - start["substeps"]),
+        "duration": float(end["t"] - start["t"]),
+        "sample_count": int(samples),
+        "settle_steps": int(settle_steps),
+    }
+
+
+def contact_friction(scene, geoms_a: range, geoms_b: range) -> float:
+    """The sliding friction the engine assigned to the live contacts between two geometry ranges (0.0: no contact).
+
+    Read from the collider's own contact data after a step (genesis 1.3.3 `func_set_contact` writes
+    contact_data.friction), so the pair rule is measured rather than recomputed. Contacts of one pair that disagree
+    are not averaged away: the largest value is returned and the metrics compare it with the rule.
+    """
+    collider = scene.sim.rigid_solver.collider
+    state = collider._collider_state
+    n = int(state.n_contacts.to_numpy()[0])
+    if n == 0:
+        return 0.0
+    # Physical slots of the live contacts, in the collider's logical order (identity unless it sorts or prunes).
+    slots = state.contact_sort_idx.to_numpy()[:n, 0] if _collider_sorts(collider) else np.arange(n)
+    ga = state.contact_data.geom_a.to_numpy()[slots, 0]
+    gb = state.contact_data.geom_b.to_numpy()[slots, 0]
+    friction = state.contact_data.friction.to_numpy()[slots, 0]
+    in_a = lambda g: (g >= geoms_a.start) & (g < geoms_a.stop)  # noqa: E731
+    in_b = lambda g: (g >= geoms_b.start) & (g < geoms_b.stop)  # noqa: E731
+    mask = (in_a(ga) & in_b(gb)) | (in_a(gb) & in_b(ga))
+    return float(friction[mask].max()) if mask.any() else 0.0
+
+
+def _collider_sorts(collider) -> bool:
+    config = collider._collider_static_config
+    return bool(config.has_prunable_contacts or config.spatial_sort_supported)
+
+
+def _geoms(entity) -> range:
+    return range(entity.geom_start, entity.geom_end)
+
+
 def simulate_contact(gs, spec: ContactCase):
     scene, table, camera = _scene(gs, spec, ((1.15, -0.95, 1.05), (0.35, 0.0, 0.78)))
     cube = scene.add_entity(
@@ -120,7 +171,7 @@ def simulate_contact(gs, spec: ContactCase):
     build_s = time.perf_counter() - t_build
     n = spec.n_steps
     out = {
-        "t": (np.arange(1, n + 1) * spec.dt).astype(np.float64),
+        "t": np.empty(n),
         "z": np.empty(n),
         "vz": np.empty(n),
         "contact_count": np.empty(n, dtype=np.int32),
@@ -132,20 +183,24 @@ def simulate_contact(gs, spec: ContactCase):
         t_r = time.perf_counter()
         frames["frame_initial"] = _frame(camera)
         render_s += time.perf_counter() - t_r
+    start = _clock(scene)
     t_steps = time.perf_counter()
     for i in range(n):
         scene.step()
+        # Sample time as the engine counts it (substeps x substep_dt), one sample after every outer step.
+        out["t"][i] = scene.sim.cur_t - start["t"]
         out["z"][i] = _np(cube.get_pos())[2]
         out["vz"][i] = _np(cube.get_vel())[2]
         out["quat"][i] = _np(cube.get_quat())
         out["contact_count"][i] = int(cube.get_contacts(with_entity=table)["position"].shape[0])
     steps_s = time.perf_counter() - t_steps
+    discretization = _discretization(scene, start, samples=n)
     if camera is not None:
         t_r = time.perf_counter()
         frames["frame_final"] = _frame(camera)
         render_s += time.perf_counter() - t_r
     out["clearance"] = out["z"] - spec.cube.size / 2 - spec.table.top_z
-    return out | frames, {"build_s": build_s, "steps_s": steps_s, "render_s": render_s}
+    return out | frames, {"build_s": build_s, "steps_s": steps_s, "render_s": render_s}, discretization
 
 
 def simulate_friction(gs, spec: FrictionCase):
@@ -171,23 +226,27 @@ def simulate_friction(gs, spec: FrictionCase):
         cube.set_dofs_velocity(velocity)
 
     n = spec.sample_count
-    out: dict[str, np.ndarray] = {"t": (np.arange(n) * spec.dt).astype(np.float64)}
+    out: dict[str, np.ndarray] = {"t": np.empty(n)}
     for lane in spec.lanes:
         p = lane.name
-        out |= {f"{p}_{k}": np.empty(n) for k in ("x", "y", "z", "vx")}
+        out |= {f"{p}_{k}": np.empty(n) for k in ("x", "y", "z", "vx", "contact_friction")}
         out[f"{p}_omega"] = np.empty((n, 3))
         out[f"{p}_contact_count"] = np.empty(n, dtype=np.int32)
-        out[f"{p}_table_friction"] = np.array(spec.table.friction)
-        out[f"{p}_cube_friction"] = np.array(lane.friction)
-        out[f"{p}_pair_friction"] = np.array(effective_pair_friction(spec.table.friction, lane.friction))
+        # Each side's coefficient as the built engine holds it for the geometry, next to the pair value it used.
+        out[f"{p}_table_friction"] = np.array(float(table.geoms[0].friction))
+        out[f"{p}_cube_friction"] = np.array(float(cubes[p].geoms[0].friction))
+
+    start = _clock(scene)
 
     def sample(i):
+        out["t"][i] = scene.sim.cur_t - start["t"]
         for name, cube in cubes.items():
             pos, vel = _np(cube.get_pos()), _np(cube.get_vel())
             out[f"{name}_x"][i], out[f"{name}_y"][i], out[f"{name}_z"][i] = pos[:3]
             out[f"{name}_vx"][i] = vel[0]
             out[f"{name}_omega"][i] = _np(cube.get_ang())
             out[f"{name}_contact_count"][i] = int(cube.get_contacts(with_entity=table)["position"].shape[0])
+            out[f"{name}_contact_friction"][i] = contact_friction(scene, _geoms(cube), _geoms(table))
 
     render_s = 0.0
     frames = {"frame_initial": EMPTY_FRAME, "frame_final": EMPTY_FRAME}
@@ -199,15 +258,16 @@ def simulate_friction(gs, spec: FrictionCase):
     for i in range(1, n):
         scene.step()
         sample(i)
+    discretization = _discretization(scene, start, samples=n, settle_steps=spec.settle_steps)
     if camera is not None:
         t_r = time.perf_counter()
         frames["frame_final"] = _frame(camera)
         render_s += time.perf_counter() - t_r
     steps_s = time.perf_counter() - t_steps - render_s
-    return out | frames, {"build_s": build_s, "steps_s": steps_s, "render_s": render_s}
+    return out | frames, {"build_s": build_s, "steps_s": steps_s, "render_s": render_s}, discretization
 
 
-def _provenance(spec, mode: str, timings: dict, rendering: dict, exit_status: int) -> dict:
+def _provenance(spec, mode: str, timings: dict, discretization: dict, rendering: dict, exit_status: int) -> dict:
     import genesis as gs
     import torch
 
@@ -240,6 +300,7 @@ def _provenance(spec, mode: str, timings: dict, rendering: dict, exit_status: in
         "host": platform.node(),
         "pid": os.getpid(),
         "timings": {"import_s": _state["import_s"], "init_s": _state["init_s"], **timings},
+        "discretization": discretization,
         "rendering": rendering,
         "runner_version": RUNNER_VERSION,
         "exit_status": exit_status,
@@ -267,7 +328,7 @@ def execute(spec: ContactCase | FrictionCase, out_dir: Path, *, mode: str) -> in
             os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
         gs = ensure_genesis(spec.backend, spec.precision, spec.seed)
         simulate = simulate_contact if isinstance(spec, ContactCase) else simulate_friction
-        arrays, timings = simulate(gs, spec)
+        arrays, timings, discretization = simulate(gs, spec)
     except ProvenanceError as exc:
         print(f"PROVENANCE ERROR [{spec.name}]: {exc}", file=sys.stderr, flush=True)
         return EXIT_PROVENANCE
@@ -281,7 +342,7 @@ def execute(spec: ContactCase | FrictionCase, out_dir: Path, *, mode: str) -> in
     )
     if not spec.render:
         print(f"rendering SKIP [{spec.name}]: rendering disabled, frame fields are empty", flush=True)
-    provenance = _provenance(spec, mode, timings, rendering, EXIT_OK)
+    provenance = _provenance(spec, mode, timings, discretization, rendering, EXIT_OK)
     tmp = out_dir / "arrays.tmp.npz"
     np.savez(tmp, **arrays)
     (out_dir / "provenance.json").write_text(json.dumps(provenance, indent=2))

@@ -21,12 +21,14 @@ from pathlib import Path
 import numpy as np
 
 from rubric import CaseResult, ContactCase, FrictionCase, Provenance, validate_arrays
+from rubric.metrics import case_metrics
+from rubric.results import discretization_problems
 
 from .errors import EXIT_PROVENANCE, EXIT_RENDER
 
 DEFAULT_TIMEOUT_S = 900.0
 WARM_MAX_CASES = 50
-EVIDENCE_FILES = ("arrays.npz", "arrays.tmp.npz", "provenance.json", "stdout.txt", "stderr.txt")
+EVIDENCE_FILES = ("arrays.npz", "arrays.tmp.npz", "provenance.json", "metrics.json", "stdout.txt", "stderr.txt")
 
 
 def _child_env() -> dict[str, str]:
@@ -104,9 +106,12 @@ def load_result(
         arrays = {name: npz[name] for name in npz.files}
     provenance = Provenance.model_validate_json(provenance_path.read_text())
     problems = _provenance_problems(spec, provenance, mode) + validate_arrays(spec, arrays, render=spec.render)
+    problems += discretization_problems(spec, provenance.discretization, arrays.get("t"))
     if problems:
         return CaseResult(status="invalid", arrays=arrays, provenance=provenance, error="; ".join(problems), **base)
-    return CaseResult(status="ok", arrays=arrays, provenance=provenance, **base)
+    metrics = case_metrics(spec, arrays)
+    (out_dir / "metrics.json").write_text(metrics.model_dump_json(indent=2))
+    return CaseResult(status="ok", arrays=arrays, provenance=provenance, metrics=metrics, **base)
 
 
 def _provenance_problems(spec, provenance: Provenance, mode: str) -> list[str]:

@@ -38,10 +38,12 @@ def test_lab_figures_cover_every_part_of_the_lab(lab_pngs, measured):
     expected = {
         "contact_trajectories.png",
         "contact_clearance.png",
-        "friction_friction-baseline.png",
-        "friction_friction-table-0.30.png",
         "friction_compare_friction-baseline_vs_friction-table-0.30.png",
-    } | {f"frames_{name}_schematic.png" for name in measured}
+    } | {f"frames_{name}_schematic.png" for name in measured} | {
+        # Every friction run gets its lane figure, the colour-swapped control included.
+        f"friction_{name}.png" for name, result in measured.items() if result.spec.kind == "friction"}
+    assert {"friction_friction-baseline.png", "friction_friction-table-0.30.png",
+            "friction_friction-baseline-colors-swapped.png"} <= expected
     assert set(lab_pngs) == expected
 
 

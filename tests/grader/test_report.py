@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from grader import figures, report
-from rubric import CaseResult, get_case
+from rubric import CaseResult, case_metrics, get_case
 
 EVIL = "<script>alert('x')</script>"
 
@@ -77,11 +77,13 @@ def test_metric_tables_hold_measured_values(tmp_path, measured, pngs):
     assert rows["N3"]["penetration proxy (mm)"] == f"{proxy_mm:.2f}"
     assert f"<td class='num'>{rows['N3']['penetration proxy (mm)']}</td>" in text
     lanes = report.lane_rows(measured)
-    assert [(r["run"], r["lane"], r["effective pair \u03bc"]) for r in lanes] == [
+    assert [(r["run"], r["lane"], r["effective pair \u03bc (engine)"]) for r in lanes] == [
         ("friction-baseline", "low", "0.50"),
         ("friction-baseline", "high", "0.80"),
         ("friction-table-0.30", "low", "0.30"),
         ("friction-table-0.30", "high", "0.80"),
+        ("friction-baseline-colors-swapped", "low", "0.50"),
+        ("friction-baseline-colors-swapped", "high", "0.80"),
     ]
     assert all(float(r["stop distance (m)"]) > 0 for r in lanes)
     assert "rgb(255, 128, 0)" in text  # the low lane's orange Surface colour as its table swatch
@@ -90,7 +92,8 @@ def test_metric_tables_hold_measured_values(tmp_path, measured, pngs):
 def test_lane_that_did_not_stop_is_reported_as_such(measured):
     result = measured["friction-baseline"]
     arrays = dict(result.arrays, low_vx=np.full_like(result.arrays["low_vx"], 1.0))
-    rows = report.lane_rows({"friction-baseline": dataclasses.replace(result, arrays=arrays)})
+    doctored = dataclasses.replace(result, arrays=arrays, metrics=case_metrics(result.spec, arrays))
+    rows = report.lane_rows({"friction-baseline": doctored})
     low = next(r for r in rows if r["lane"] == "low")
     assert low["stop distance (m)"] == report.NOT_STOPPED == "not stopped within the measured window"
     assert low["stop time (s)"] == report.NOT_STOPPED

@@ -28,7 +28,9 @@ def test_baseline_measurements_pass_every_condition(measured):
     proxy = report.contact
     assert proxy["N2"].penetration_proxy < proxy["N1"].penetration_proxy
     assert proxy["N4"].penetration_proxy < proxy["N3"].penetration_proxy
-    assert "N1 proxy" in next(c.evidence for c in report.conditions if c.id == "substeps_reduce_proxy")
+    evidence = next(c.evidence for c in report.conditions if c.id == "substeps_reduce_proxy")
+    assert f"N1 {proxy['N1'].penetration_proxy * 1000:.3f} mm -> N2 {proxy['N2'].penetration_proxy * 1000:.3f} mm" \
+        in evidence
 
 
 def test_collision_disabled_fails_the_contact_condition_by_name(measured, tmp_path):

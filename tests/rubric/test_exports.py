@@ -64,7 +64,7 @@ def test_gradescope_results_follow_the_format(reports):
     assert set(results) == GRADESCOPE_TOP
     json.dumps(results)  # must be plain JSON
     assert results["score"] == report.total and results["execution_time"] == 12.346
-    assert "rubric version 1" in results["output"]
+    assert f"rubric version {report.rubric_version} " in results["output"]
     assert len(results["tests"]) == len(report.items)
     for test, item in zip(results["tests"], report.items):
         assert set(test) == GRADESCOPE_TEST

@@ -20,7 +20,8 @@ from rubric import (
     publish_version,
     regrade_preview,
 )
-from rubric.rubrics import parse_rubric, rubric_changes, rubric_versions
+from rubric.governance import rubric_changes
+from rubric.rubrics import parse_rubric, rubric_versions
 from rubric.scoring import SHEET_CASE_PREFIX
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "l03"
@@ -110,8 +111,8 @@ def test_regrade_under_a_new_version_previews_the_per_student_diff_and_keeps_old
     results, reference = _results(measured)
     misconceived = reference.model_copy(update={"student": "bob", "answers": reference.answers.model_copy(
         update={"H3": reference.answers.H3.model_copy(update={"high": "farther"})})})
-    v1 = load_rubric("L03", "1")
-    old = {s.student: grade_sheet(s, results, v1) for s in (reference, misconceived)}
+    v2 = load_rubric("L03", "2")
+    old = {s.student: grade_sheet(s, results, v2) for s in (reference, misconceived)}
     before = {k: r.model_dump() for k, r in old.items()}
 
     # A reviewer tightens "nearly unchanged" below the high lane's measured change: the control becomes decisive.
@@ -119,25 +120,33 @@ def test_regrade_under_a_new_version_previews_the_per_student_diff_and_keeps_old
     delta = abs(lane_metrics(mod.spec, mod.arrays, "high").stop.distance
                 - lane_metrics(base.spec, base.arrays, "high").stop.distance)
     assert delta > 0, "the regrade scenario needs a non-zero measured change of the high lane"
-    v2 = publish_version(edited(v1, version="2", review=NEW_REVIEW,
-                                high_lane_unchanged={"value": delta / 2, **NEW_REVIEW}), [v1], used_versions={"1"})
-    new = {s.student: grade_sheet(s, results, v2) for s in (reference, misconceived)}
+    v3 = publish_version(edited(v2, version="3", review=NEW_REVIEW,
+                                high_lane_unchanged={"value": delta / 2, **NEW_REVIEW}), [v2], used_versions={"2"})
+    new = {s.student: grade_sheet(s, results, v3) for s in (reference, misconceived)}
     preview = regrade_preview(old, new)
 
     rows = {row.student: row for row in preview.rows}
     assert set(rows) == {"reference", "bob"}
     ref, bob = rows["reference"], rows["bob"]
-    assert (ref.old_version, ref.new_version) == ("1", "2")
+    assert (ref.old_version, ref.new_version) == ("2", "3")
     assert ref.old_score == old["reference"].total and ref.new_score == new["reference"].total
     assert {c.id for c in ref.changed_items} == {"B3", "H3"}  # "unchanged" no longer holds at the tighter margin
-    assert ref.delta == -(v1.item("B3").points + v1.item("H3").points)
+    assert ref.delta == -(v2.item("B3").points + v2.item("H3").points)
     assert {c.id for c in bob.changed_items} == {"B3", "H3"}
     h3 = next(c for c in bob.changed_items if c.id == "H3")
     assert (h3.old_verdict, h3.new_verdict) == ("no_credit", "credit")
     assert {r.student for r in preview.changed} == {"reference", "bob"}
     # Previewing (and committing, which stores the new reports beside them) never rewrites the old grades.
     assert {k: r.model_dump() for k, r in old.items()} == before
-    assert all(r.rubric_version == "1" for r in old.values())
+    assert all(r.rubric_version == "2" for r in old.values())
+
+
+def test_grading_under_the_archived_v1_is_refused_but_v1_still_loads(measured):
+    results, reference = _results(measured)
+    v1 = load_rubric("L03", "1")
+    assert v1.version == "1" and v1.items  # grades stored under v1 stay readable
+    with pytest.raises(ValueError, match="rubric L03 v1 is archived"):
+        grade_sheet(reference, results, v1)
 
 
 def test_preview_lists_students_on_one_side_only(measured):

@@ -5,6 +5,7 @@ import json
 import numpy as np
 
 from rubric import get_case
+from rubric.results import spec_discretization
 from worker import load_result
 
 
@@ -20,7 +21,9 @@ def _provenance(**over):
         "precision": "32", "seed": 0, "deterministic_algorithms": False, "execution_mode": "isolated",
         "host": "h", "pid": 1, "timings": {"import_s": 1, "init_s": 1, "build_s": 1, "steps_s": 1},
         "rendering": {"requested": False, "status": "SKIP", "frames": 0, "detail": "off"},
-        "runner_version": "1", "exit_status": 0,
+        "runner_version": "2", "exit_status": 0,
+        # What the engine reports for N3 when it ran as specified.
+        "discretization": spec_discretization(get_case("N3")).model_dump(),
     }
     return p | over
 
@@ -69,3 +72,20 @@ def test_a_killed_process_is_a_timeout_result_with_its_output(tmp_path):
     (tmp_path / "stdout.txt").write_text("half a run")
     result = load_result(get_case("N3"), tmp_path, exit_status=None, mode="isolated", timeout_s=5)
     assert result.status == "timeout" and "5 s time limit" in result.error and result.stdout == "half a run"
+
+
+def test_an_engine_discretization_that_differs_from_the_spec_is_refused(tmp_path):
+    reported = spec_discretization(get_case("N3")).model_dump() | {"substeps": 2, "internal_updates": 150}
+    _write(tmp_path, _arrays(), _provenance(discretization=reported))
+    result = load_result(get_case("N3"), tmp_path, exit_status=0, mode="isolated")
+    assert result.status == "invalid"
+    assert "provenance.discretization.substeps: engine reported 2, the spec derives 1" in result.error
+    assert "provenance.discretization.internal_updates: engine reported 150, the spec derives 75" in result.error
+
+
+def test_a_time_axis_that_is_not_the_engine_dt_is_refused(tmp_path):
+    arrays = _arrays()
+    arrays["t"] = np.linspace(0.02, 1.5, 75) ** 1.01  # uneven spacing: not what a dt=0.02 engine sampled
+    _write(tmp_path, arrays, _provenance())
+    result = load_result(get_case("N3"), tmp_path, exit_status=0, mode="isolated")
+    assert result.status == "invalid" and "t: sample spacing" in result.error and "engine dt 0.02 s" in result.error

@@ -54,8 +54,15 @@ def test_result_carries_full_provenance_and_evidence_files(isolated):
 def test_friction_lanes_record_their_frictions_and_start_at_the_declared_speed(measured):
     result = measured["friction-table-0.30"]
     a = result.arrays
-    assert float(a["low_pair_friction"]) == pytest.approx(0.30)
-    assert float(a["high_pair_friction"]) == pytest.approx(0.80)
+    # The frictions the built scene's geometries carry, and what the engine's collider assigned to live contacts.
+    assert float(a["low_table_friction"]) == pytest.approx(0.30) and float(a["low_cube_friction"]) == pytest.approx(0.20)
+    assert float(a["high_cube_friction"]) == pytest.approx(0.80)
+    for lane, expected in (("low", 0.30), ("high", 0.80)):
+        touching = a[f"{lane}_contact_friction"][a[f"{lane}_contact_friction"] > 0]
+        assert touching.size > 0.9 * len(a["t"]), f"{lane}: the cube should touch the table almost all the time"
+        np.testing.assert_allclose(touching, expected, rtol=1e-6, err_msg=lane)
+        lane_metrics = result.metrics.lane(lane)
+        assert lane_metrics.pair_friction == pytest.approx(expected) and lane_metrics.pair_friction_agrees
     assert a["t"][0] == 0.0 and len(a["t"]) == 201
     assert a["low_vx"][0] == pytest.approx(2.0, abs=1e-3) and a["high_vx"][0] == pytest.approx(2.0, abs=1e-3)
     assert a["low_omega"].shape == (201, 3)

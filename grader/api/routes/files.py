@@ -13,12 +13,13 @@ from grader.settings import settings
 
 router = APIRouter(prefix="/submissions/{submission_id}", tags=["files"], responses=NOT_FOUND)
 EVIDENCE = {"arrays.npz": "application/octet-stream", "provenance.json": "application/json",
+            "metrics.json": "application/json",
             "spec.json": "application/json", "stdout.txt": "text/plain", "stderr.txt": "text/plain"}
 
 
 @router.get("/case-runs/{name}/files/{filename}", response_class=FileResponse)
 def case_run_file(submission: SubmissionDep, name: str, filename: str):
-    """One evidence file of a case run (arrays.npz, provenance.json, spec.json, stdout.txt, stderr.txt)."""
+    """One evidence file of a case run (arrays.npz, provenance.json, metrics.json, spec.json, stdout, stderr)."""
     run = next((r for r in submission.case_runs if r.name == name), None)
     if run is None or filename not in EVIDENCE or not run.artifact_dir:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"no file {filename!r} for case run {name!r}")

@@ -1,0 +1,278 @@
+"""The scoring engine: grade a prediction sheet item by item against what the engine measured, under a rubric version.
+
+Each item names a check (registered by the part modules of this package). A check returns an Outcome: the
+verdict, what was expected and the evidence with the backend of every run it read. Verdicts:
+- credit / no_credit: the prediction matches the expected answer, or not;
+- inconclusive: the measured difference is inside the reviewed tolerance (not counted either way);
+- one_factor_violation: a run the item compares comes from a config that changed more than one factor;
+- not_measured: a run the item needs failed or was never run (no credit, visible).
+A config fault voids only the items that read the run it concerns: a check that reads a role whose config broke
+the one-factor rule is stopped there and says which config and why; every other item keeps its score.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Literal
+
+from pydantic import BaseModel
+
+from ..cases import BASELINE_CASES, COLOR_SWAP
+from ..metrics import ContactMetrics, FrictionMetrics, LaneMetrics
+from ..one_factor import ConfigFinding, one_factor_findings
+from ..results import CaseResult
+from ..rubrics import Item, Rubric, load_rubric, version_key
+from ..sheet import PredictionSheet
+
+Verdict = Literal["credit", "no_credit", "inconclusive", "one_factor_violation", "not_measured"]
+SHEET_CASE_PREFIX = "sheet."
+# Lesson cases every sheet is graded on (when the sheet does not replace them with its own config).
+LESSON_RUNS = ("N1", "N2", "N3", "N4", "friction-baseline", COLOR_SWAP)
+
+
+class ItemGrade(BaseModel):
+    id: str
+    question: str
+    part: str
+    kind: str
+    points: float
+    score: float
+    max_score: float  # 0 when inconclusive: neither credited nor penalized
+    verdict: Verdict
+    prediction: str
+    expected: str
+    feedback: str
+    evidence: dict[str, float | int | None]
+    backends: dict[str, str]
+    tolerances: dict[str, str]
+
+
+class GradeReport(BaseModel):
+    lesson: str
+    student: str
+    rubric_version: str
+    rubric_hash: str
+    engine_version: str
+    total: float
+    max_total: float
+    complete: bool  # False when any item could not be measured
+    items: list[ItemGrade]
+    config_findings: list[str]
+
+    def item(self, item_id: str) -> ItemGrade:
+        return next(i for i in self.items if i.id == item_id)
+
+
+class NotMeasured(Exception):
+    """A case this item needs has no valid measurement (failed, invalid, timed out or not run)."""
+
+
+class ConfigViolation(Exception):
+    """A run this item needs comes from a config that broke the one-factor rule (it was never run)."""
+
+    def __init__(self, finding: ConfigFinding):
+        super().__init__(finding.describe())
+        self.finding = finding
+
+
+@dataclass
+class Outcome:
+    verdict: Verdict
+    expected: str
+    measured: str = ""
+    evidence: dict[str, float | int | None] = field(default_factory=dict)
+    backends: dict[str, str] = field(default_factory=dict)
+
+
+def case_name(sheet: PredictionSheet, role_or_case: str) -> str:
+    """Name a role's case runs under: the student's config is renamed so it never collides with a lesson case."""
+    if role_or_case in sheet.configs.submitted():
+        return SHEET_CASE_PREFIX + role_or_case
+    return role_or_case
+
+
+def cases_to_run(sheet: PredictionSheet, rubric: Rubric | None = None) -> list:
+    """Every case grading needs: lesson cases not replaced by the sheet, plus its configs that obey the one-factor
+    rule (a config that breaks it is graded as such, never run as if valid). Unique names."""
+    rubric = rubric or load_rubric(sheet.lesson)
+    findings = one_factor_findings(sheet, rubric)
+    specs = {}
+    for name in LESSON_RUNS:
+        if name not in sheet.configs.submitted():
+            specs[name] = BASELINE_CASES[name]
+    for role, spec in sheet.configs.submitted().items():
+        if findings[role].ok:
+            run_name = case_name(sheet, role)
+            specs[run_name] = type(spec).model_validate(
+                {**spec.model_dump(exclude_computed_fields=True), "name": run_name}
+            )
+    return list(specs.values())
+
+
+class Context:
+    """What a check may read: the sheet, its item's reviewed tolerances, and the measured runs by role."""
+
+    def __init__(self, sheet: PredictionSheet, results: Mapping[str, CaseResult], rubric: Rubric,
+                 findings: Mapping[str, ConfigFinding]):
+        self.sheet, self.results, self.rubric, self.findings = sheet, results, rubric, findings
+        self.item: Item | None = None
+
+    def tol(self, name: str) -> float:
+        """A reviewed tolerance the current item declares; reading an undeclared one is a rubric bug, not a grade."""
+        if name not in self.item.tolerances:
+            raise KeyError(f"item {self.item.id} reads tolerance {name!r} but declares only {self.item.tolerances}")
+        return self.rubric.tolerances[name].value
+
+    def spec(self, role: str):
+        return self.sheet.spec_for(role)
+
+    def run_name(self, role: str) -> str:
+        return case_name(self.sheet, role)
+
+    def result(self, role: str) -> CaseResult:
+        finding = self.findings.get(role)
+        if finding is not None and not finding.ok:
+            raise ConfigViolation(finding)
+        name = self.run_name(role)
+        result = self.results.get(name)
+        if result is None:
+            raise NotMeasured(f"case {name} ({role}) was not run")
+        if not result.ok:
+            raise NotMeasured(f"case {name} ({role}) {result.status} on {result.backend}: {result.error}")
+        if result.metrics is None:
+            raise NotMeasured(f"case {name} ({role}) has no stored metrics")
+        return result
+
+    def backend(self, role: str) -> str:
+        return self.result(role).backend
+
+    def contact(self, role: str) -> ContactMetrics:
+        return self.result(role).metrics
+
+    def friction(self, role: str) -> FrictionMetrics:
+        return self.result(role).metrics
+
+    def lane(self, role: str, lane: str) -> LaneMetrics:
+        return self.friction(role).lane(lane)
+
+    def backends(self, *roles: str) -> dict[str, str]:
+        return {self.run_name(role): self.backend(role) for role in roles}
+
+    def maybe(self, fn: Callable, *args):
+        """Supporting evidence: None when that run was not measured or its config broke the one-factor rule."""
+        try:
+            return fn(*args)
+        except (NotMeasured, ConfigViolation):
+            return None
+
+
+CHECKS: dict[str, Callable[[Context, Item, object], Outcome]] = {}
+
+
+def check(name: str):
+    def register(fn):
+        CHECKS[name] = fn
+        return fn
+    return register
+
+
+def credit(ok: bool) -> "Verdict":
+    return "credit" if ok else "no_credit"
+
+
+def relation_verdict(predicted: str, measured: list[str | None]) -> "Verdict":
+    """A decisive measurement against the prediction refutes it; otherwise any unresolved one leaves it open."""
+    if any(m is not None and m != predicted for m in measured):
+        return "no_credit"
+    if any(m is None for m in measured):
+        return "inconclusive"
+    return "credit"
+
+
+def _prediction(answer) -> str:
+    return json.dumps(answer.model_dump(mode="json", exclude={"explanation"}), separators=(", ", ": "))
+
+
+def _tolerances(rubric: Rubric, item: Item) -> dict[str, str]:
+    return {name: f"{rubric.tolerances[name].value:g} {rubric.tolerances[name].unit}" for name in item.tolerances}
+
+
+_VERDICT_TEXT = {
+    "credit": "credit: the prediction matches",
+    "no_credit": "no credit: the prediction does not match",
+    "inconclusive": "inconclusive: the measured difference is inside the reviewed tolerance, so the direction is "
+                    "neither credited nor penalized (not counted)",
+    "one_factor_violation": "one-factor violation: a run this item compares comes from a config that changed too many "
+                            "inputs at once, so the comparison is not interpretable",
+    "not_measured": "not measured: no valid result for a case this item needs; no credit until it is measured",
+}
+_HOW = {
+    "measured": "Decided by measurement",
+    "config": "Decided from the submitted configs",
+    "computed": "Computed from the configs",
+    "conceptual": "Conceptual: no run can decide this answer; the measured evidence only illustrates it",
+}
+
+
+def _grade_item(ctx: Context, item: Item) -> ItemGrade:
+    answer = getattr(ctx.sheet.answers, item.id)
+    ctx.item = item
+    try:
+        outcome = CHECKS[item.check](ctx, item, answer)
+    except ConfigViolation as exc:
+        outcome = Outcome("one_factor_violation", "a one-factor config", str(exc))
+    except NotMeasured as exc:
+        outcome = Outcome("not_measured", "a measured result", str(exc))
+    tolerances = _tolerances(ctx.rubric, item)
+    feedback = [f"{_HOW[item.kind]}.", f"Prediction: {_prediction(answer)}.", f"Expected: {outcome.expected}."]
+    if outcome.measured:
+        on = ", ".join(f"{case} on {backend}" for case, backend in outcome.backends.items())
+        feedback.append(f"Evidence: {outcome.measured}" + (f" [{on}]." if on else "."))
+    if tolerances:
+        feedback.append("Tolerance: " + ", ".join(f"{k} = {v}" for k, v in tolerances.items()) + ".")
+    feedback.append(f"Verdict: {_VERDICT_TEXT[outcome.verdict]}.")
+    counted = outcome.verdict != "inconclusive"
+    return ItemGrade(
+        id=item.id, question=item.question, part=item.part, kind=item.kind, points=item.points,
+        score=item.points if outcome.verdict == "credit" else 0.0,
+        max_score=item.points if counted else 0.0,
+        verdict=outcome.verdict, prediction=_prediction(answer), expected=outcome.expected,
+        feedback=" ".join(feedback), evidence=outcome.evidence, backends=outcome.backends, tolerances=tolerances,
+    )
+
+
+class ArchivedRubric(ValueError):
+    """A rubric version whose checks are no longer implemented: its stored grades stay readable, no new grading."""
+
+
+# The checks of this package implement these rubric versions and later; grades stored under an earlier version
+# stay readable (its file still loads), but grading under it would run today's checks under yesterday's items.
+GRADABLE_FROM = {"L03": "2"}
+
+
+def ensure_gradable(rubric: Rubric) -> None:
+    first = GRADABLE_FROM.get(rubric.lesson)
+    if first is not None and version_key(rubric.version) < version_key(first):
+        raise ArchivedRubric(
+            f"rubric {rubric.lesson} v{rubric.version} is archived: grades stored under it stay readable, but new "
+            f"grading needs v{first} or later")
+
+
+def grade_sheet(sheet: PredictionSheet, results: Mapping[str, CaseResult], rubric: Rubric | None = None) -> GradeReport:
+    """Grade every rubric item; failed or missing results give visible not_measured items, never a crash or credit."""
+    rubric = rubric or load_rubric(sheet.lesson)
+    if rubric.lesson != sheet.lesson:
+        raise ValueError(f"rubric is for lesson {rubric.lesson}, the sheet for {sheet.lesson}")
+    ensure_gradable(rubric)
+    findings = one_factor_findings(sheet, rubric)
+    ctx = Context(sheet, results, rubric, findings)
+    items = [_grade_item(ctx, item) for item in rubric.items]
+    return GradeReport(
+        lesson=sheet.lesson, student=sheet.student, rubric_version=rubric.version, rubric_hash=rubric.content_hash,
+        engine_version=rubric.engine_version,
+        total=sum(i.score for i in items), max_total=sum(i.max_score for i in items),
+        complete=all(i.verdict != "not_measured" for i in items),
+        items=items, config_findings=[f.describe() for f in findings.values()],
+    )
