@@ -133,11 +133,15 @@ def contact_metrics(spec: ContactCase, arrays: dict[str, np.ndarray]) -> Contact
 
 
 def separation_mask(spec: ContactCase, arrays: dict[str, np.ndarray]) -> np.ndarray:
-    """Samples of observed geometric separation: no reported contact AND bottom clearance above the declared tolerance.
+    """Samples of observed geometric separation: after first contact, no reported contact AND bottom clearance above
+    the declared tolerance.
 
-    Either signal alone is not separation: a zero contact count can occur while the cube still rests on the table.
+    Either signal alone is not separation: a zero contact count can occur while the cube still rests on the table,
+    and before first contact the cube is falling, not separated. The check, the scoring and the figures all use this.
     """
-    return (arrays["contact_count"] == 0) & (arrays["clearance"] > spec.separation_tolerance)
+    in_contact = arrays["contact_count"] > 0
+    after_first_contact = np.cumsum(in_contact) > 0
+    return after_first_contact & ~in_contact & (arrays["clearance"] > spec.separation_tolerance)
 
 
 def penetration_proxy(z: np.ndarray, expected_center_z: float) -> float:

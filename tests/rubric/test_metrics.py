@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from rubric import align, contact_metrics, effective_pair_friction, get_case, sustained_stop
-from rubric.metrics import penetration_proxy, tilt
+from rubric.metrics import penetration_proxy, separation_mask, tilt
 
 
 def test_sustained_stop_needs_a_full_hold_interval():
@@ -80,3 +80,13 @@ def test_alignment_compares_only_shared_sample_times():
     assert result.shared_samples == 75
     assert result.first_shared_times == [0.02, 0.04, 0.06]
     assert result.max_abs_diff["z"] == pytest.approx(0.5)
+
+
+def test_separation_mask_ignores_samples_before_first_contact():
+    spec = get_case("N1")
+    arrays = {
+        "contact_count": np.array([0, 0, 4, 0, 0, 4]),
+        "clearance": np.array([0.2, 0.1, 0.0, 0.005, 0.0005, 0.0]),
+    }
+    # Sample 0-1: falling, not separation. Sample 3: no contact and clearance above 1 mm. Sample 4: within tolerance.
+    assert separation_mask(spec, arrays).tolist() == [False, False, False, True, False, False]

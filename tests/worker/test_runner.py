@@ -55,12 +55,14 @@ def test_friction_lanes_record_their_frictions_and_start_at_the_declared_speed(m
     result = measured["friction-table-0.30"]
     a = result.arrays
     # The frictions the built scene's geometries carry, and what the engine's collider assigned to live contacts.
-    assert float(a["low_table_friction"]) == pytest.approx(0.30) and float(a["low_cube_friction"]) == pytest.approx(0.20)
+    assert float(a["low_table_friction"]) == pytest.approx(0.30) and float(a["low_cube_friction"]) == pytest.approx(0.10)
     assert float(a["high_cube_friction"]) == pytest.approx(0.80)
     for lane, expected in (("low", 0.30), ("high", 0.80)):
-        touching = a[f"{lane}_contact_friction"][a[f"{lane}_contact_friction"] > 0]
-        assert touching.size > 0.9 * len(a["t"]), f"{lane}: the cube should touch the table almost all the time"
-        np.testing.assert_allclose(touching, expected, rtol=1e-6, err_msg=lane)
+        friction, count = a[f"{lane}_contact_friction"], a[f"{lane}_contact_count"]
+        # Two independent engine readouts agree: a pair value exactly where the entity reports table contacts.
+        np.testing.assert_array_equal(friction > 0, count > 0, err_msg=lane)
+        assert (count > 0).any(), f"{lane}: the cube never touched the table"
+        np.testing.assert_allclose(friction[count > 0], expected, rtol=1e-6, err_msg=lane)
         lane_metrics = result.metrics.lane(lane)
         assert lane_metrics.pair_friction == pytest.approx(expected) and lane_metrics.pair_friction_agrees
     assert a["t"][0] == 0.0 and len(a["t"]) == 201

@@ -1,0 +1,158 @@
+"""Part B figures: each friction run's lanes (x, vx, |omega|, sustained stop) and the one-factor comparison.
+
+Stops and pair frictions come from the run's stored metrics: the pair value is the one the engine assigned to the
+lane's contacts, so a figure can never show a recomputed rule that disagrees with what was simulated.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from rubric import CaseResult, FrictionCase
+from rubric.metrics import LaneMetrics
+from rubric.relations import stop_change
+
+from .common import finish, lane_color, metrics_of, new_figure, safe_name, split_ok
+
+
+def pair_text(m: LaneMetrics) -> str:
+    """The pair friction the engine assigned to the lane's contacts (stored metrics), never a recomputed rule."""
+    if m.pair_friction is None:
+        return "pair \u03bc: no contact reported"
+    flag = "" if m.pair_friction_agrees else f" \u2260 rule {m.pair_friction_rule:.2f}!"
+    return f"pair \u03bc={m.pair_friction:.2f} (engine){flag}"
+
+
+def _lane_label(m: LaneMetrics) -> str:
+    return f"{m.lane}: cube \u03bc={m.cube_friction:.2f}, table \u03bc={m.table_friction:.2f} \u2192 {pair_text(m)}"
+
+
+def friction_figure(result: CaseResult, out_dir: str | Path) -> Path:
+    """x(t), vx(t) with the stop-speed band and |omega|(t) per lane, with each lane's sustained stop marked."""
+    spec: FrictionCase = result.spec
+    path = Path(out_dir) / f"friction_{safe_name(spec.name)}.png"
+    fig = new_figure(12, 10)
+    axes = fig.subplots(3, 1, sharex=True)
+    if result.ok and result.arrays:
+        for k, lane in enumerate(spec.lanes):
+            _plot_lane(axes, result, lane, k)
+        axes[1].axhspan(-spec.stop_speed, spec.stop_speed, color="#777777", alpha=0.3,
+                        label=f"stop band |vx| < {spec.stop_speed:g} m/s (hold {spec.hold:g} s)")
+    _label_friction_axes(axes)
+    fig.suptitle(f"L03 Part B: sliding cubes, run '{spec.name}' (table \u03bc={spec.table.friction:.2f}, "
+                 f"dt={spec.dt:g} s, substeps={spec.substeps})", fontsize=13)
+    ok, skipped = split_ok([result])
+    notes = [stop_note(result, lane.name) for lane in spec.lanes] if ok else []
+    return finish(fig, [result], path, source="measured trajectories", skipped=skipped, notes=notes)
+
+
+def stop_note(result: CaseResult, lane_name: str) -> str:
+    """'low: stopped at t=0.45 s after 0.410 m' or 'low: NOT STOPPED within the measured window (...)'."""
+    m = metrics_of(result).lane(lane_name)
+    if m.stop.stopped:
+        return f"{lane_name}: stopped at t={m.stop.time:.2f} s after {m.stop.distance:.3f} m"
+    return (f"{lane_name}: NOT STOPPED within the measured window (0\u2013{result.arrays['t'][-1]:.2f} s; "
+            f"final displacement {m.final_displacement:.3f} m)")
+
+
+def _plot_lane(axes, result: CaseResult, lane, k: int) -> None:
+    spec, a = result.spec, result.arrays
+    t = a["t"]
+    color = lane_color(lane)
+    disp = a[f"{lane.name}_x"] - a[f"{lane.name}_x"][0]
+    omega = np.linalg.norm(a[f"{lane.name}_omega"], axis=1)
+    series = (disp, a[f"{lane.name}_vx"], omega)
+    m = metrics_of(result).lane(lane.name)
+    for ax, y in zip(axes, series):
+        ax.plot(t, y, color=color, lw=2, label=_lane_label(m))
+    stop = m.stop
+    if stop.stopped:
+        i = stop.index
+        for ax, y in zip(axes, series):
+            ax.axvline(stop.time, color=color, ls="--", lw=1.2)
+            ax.plot([t[i]], [y[i]], "o", ms=9, color=color, mec="k", zorder=5)
+        axes[0].annotate(f"{lane.name} stops: t={stop.time:.2f} s, distance={stop.distance:.3f} m",
+                         (t[i], disp[i]), xytext=(12, -18 - 16 * k), textcoords="offset points",
+                         fontsize=9, color="k", arrowprops=dict(arrowstyle="-", color=color))
+    else:
+        axes[0].text(0.99, 0.05 + 0.09 * k, stop_note(result, lane.name), transform=axes[0].transAxes,
+                     ha="right", fontsize=9, color="k", bbox=dict(fc="white", ec=color, lw=1.5))
+
+
+def _label_friction_axes(axes) -> None:
+    axes[0].set_ylabel("displacement x \u2212 x\u2080 (m)")
+    axes[1].set_ylabel("velocity vx (m/s)")
+    axes[2].set_ylabel("|angular velocity \u03c9| (rad/s)")
+    axes[2].set_xlabel("time since measurement start t (s)")
+    axes[0].set_title("dashed line + dot: first sample of a sustained stop (|vx| below the band for the hold interval)",
+                      fontsize=9)
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=9, loc="center right")
+    axes[1].legend(fontsize=9, loc="upper right")
+
+
+def friction_comparison_figure(baseline: CaseResult, modified: CaseResult, out_dir: str | Path) -> Path:
+    """Per lane, the baseline and the modified run overlaid: displacement and velocity, stops marked."""
+    path = Path(out_dir) / f"friction_compare_{safe_name(baseline.spec.name)}_vs_{safe_name(modified.spec.name)}.png"
+    runs, skipped = split_ok([baseline, modified])
+    lanes = baseline.spec.lanes
+    fig = new_figure(6.5 * len(lanes), 8.5)
+    axes = fig.subplots(2, len(lanes), sharex=True, squeeze=False)
+    # Baseline as a wide pale band, the modified run as a dashed line on top: identical curves stay both visible.
+    styles = (dict(ls="-", lw=5, alpha=0.35), dict(ls=(0, (4, 2)), lw=1.8, alpha=1.0))
+    for col, lane in enumerate(lanes):
+        for run, style in zip(runs, styles):
+            _plot_compared_lane(axes[:, col], run, lane.name, style)
+        _label_compared_lane(axes[:, col], runs, lane)
+    fig.suptitle(f"L03 Part B: one-factor comparison '{baseline.spec.name}' (wide pale) vs "
+                 f"'{modified.spec.name}' (dashed): only table friction changes", fontsize=13)
+    return finish(fig, [baseline, modified], path, source="measured trajectories", skipped=skipped)
+
+
+def _plot_compared_lane(axes, run: CaseResult, lane_name: str, style: dict) -> None:
+    spec, a = run.spec, run.arrays
+    lane = next(item for item in spec.lanes if item.name == lane_name)
+    t, x, vx = a["t"], a[f"{lane_name}_x"], a[f"{lane_name}_vx"]
+    disp = x - x[0]
+    m = metrics_of(run).lane(lane_name)
+    stop = m.stop
+    where = f"stop {stop.distance:.3f} m at {stop.time:.2f} s" if stop.stopped else "not stopped in window"
+    label = f"{spec.name}: table \u03bc={m.table_friction:.2f}, {pair_text(m)}; {where}"
+    color = lane_color(lane)
+    axes[0].plot(t, disp, color=color, label=label, **style)
+    axes[1].plot(t, vx, color=color, **style)
+    if stop.stopped:
+        axes[0].plot([stop.time], [disp[stop.index]], "o", ms=9, color=color, mec="k", zorder=5)
+        axes[1].plot([stop.time], [vx[stop.index]], "o", ms=9, color=color, mec="k", zorder=5)
+
+
+def _stop_change(runs: list[CaseResult], lane_name: str) -> str:
+    """'stop distance 0.410 -> 0.675 m (+0.265 m)', or which run did not stop: the comparison's one-line answer."""
+    lanes = [metrics_of(r).lane(lane_name) for r in runs]
+    if len(lanes) != 2:
+        return "comparison needs both runs"
+    change = stop_change(*lanes)
+    if change is None:
+        missing = [r.spec.name for r, m in zip(runs, lanes) if not m.stop.stopped]
+        return "not stopped within the measured window: " + ", ".join(missing)
+    return f"stop distance {lanes[0].stop.distance:.3f} \u2192 {lanes[1].stop.distance:.3f} m ({change:+.3f} m)"
+
+
+def _label_compared_lane(axes, runs: list[CaseResult], lane) -> None:
+    engine = [metrics_of(r).lane(lane.name).pair_friction for r in runs]
+    pairs = " \u2192 ".join("no contact" if v is None else f"{v:.2f}" for v in engine) + " (engine)"
+    axes[0].set_title(f"lane '{lane.name}' (cube \u03bc={lane.friction:.2f}): pair \u03bc {pairs}\n"
+                      f"{_stop_change(runs, lane.name)}", fontsize=11)
+    axes[0].set_ylabel("displacement x \u2212 x\u2080 (m)")
+    axes[1].set_ylabel("velocity vx (m/s)")
+    axes[1].set_xlabel("time since measurement start t (s)")
+    if runs:
+        stop_speed = runs[0].spec.stop_speed
+        axes[1].axhspan(-stop_speed, stop_speed, color="#777777", alpha=0.3, label=f"|vx| < {stop_speed:g} m/s")
+        axes[1].legend(fontsize=8, loc="upper right")
+    axes[0].legend(fontsize=8, loc="lower right")
+    for ax in axes:
+        ax.grid(alpha=0.3)
