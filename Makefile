@@ -11,6 +11,9 @@ $(STAMP): pyproject.toml
 	# torch first and exactly pinned: the CPU wheel is on disk; anything looser downloads CUDA builds.
 	$(PY) -m pip install --quiet torch==2.13.0
 	$(PY) -m pip install --quiet -e '.[test]'
+	# Browser tests use Debian's chromium; Playwright's own browser download is unreachable from these machines.
+	test -x /usr/bin/chromium || apt-get install -y --no-install-recommends chromium \
+		|| (apt-get update && apt-get install -y --no-install-recommends chromium)
 	touch $(STAMP)
 
 # The embedded service (SQLite, filesystem broker, a local Celery worker): grades examples/l03/reference.yaml.

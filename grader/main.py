@@ -1,9 +1,13 @@
 """Builds the FastAPI app: `uvicorn grader.main:app`. Never imports Genesis or torch."""
 
+from pathlib import Path
+
 from fastapi import FastAPI
+from fastapi.staticfiles import StaticFiles
 
 from grader.api import errors
 from grader.api.main import api_router
+from grader.pages import router as pages_router
 from grader.settings import settings
 
 app = FastAPI(
@@ -15,3 +19,5 @@ app = FastAPI(
 )
 errors.install(app, max_bytes=settings.max_body_bytes)
 app.include_router(api_router)
+app.include_router(pages_router)
+app.mount("/static", StaticFiles(directory=Path(__file__).resolve().parent / "static"), name="static")

@@ -43,6 +43,7 @@ class ItemGrade(BaseModel):
     verdict: Verdict
     prediction: str
     expected: str
+    measured: str = ""  # what the runs showed, in words with units (empty where nothing was measured)
     feedback: str
     evidence: dict[str, float | int | None]
     backends: dict[str, str]
@@ -238,7 +239,7 @@ def _grade_item(ctx: Context, item: Item) -> ItemGrade:
         id=item.id, question=item.question, part=item.part, kind=item.kind, points=item.points,
         score=item.points if outcome.verdict == "credit" else 0.0,
         max_score=item.points if counted else 0.0,
-        verdict=outcome.verdict, prediction=_prediction(answer), expected=outcome.expected,
+        verdict=outcome.verdict, prediction=_prediction(answer), expected=outcome.expected, measured=outcome.measured,
         feedback=" ".join(feedback), evidence=outcome.evidence, backends=outcome.backends, tolerances=tolerances,
     )
 

@@ -1,0 +1,131 @@
+"""The pages people look at, server-rendered from grader/templates: sign-in, a caller's submissions, one report.
+
+Same access rules as the API (a student sees their own submissions, instructors and auditors their course's);
+anything a caller may not read is a 404 page that reveals nothing. Every asset is served by this app.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from urllib.parse import quote
+
+from fastapi import APIRouter, Form, Request, status
+from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse, Response
+from fastapi.templating import Jinja2Templates
+from sqlalchemy import select
+
+from grader import crud
+from grader.api.deps import SessionDep
+from grader.api.routes.files import EVIDENCE
+from grader.models import Grade, Submission
+from grader.pages.auth import PageUser, clear_session_cookie, set_session_cookie
+from grader.pages.views import figures_dir, report_view
+
+TEMPLATES = Jinja2Templates(directory=str(Path(__file__).resolve().parent.parent / "templates"))
+PART_TITLES = {
+    "A": "Part A: contact and time step", "B": "Part B: friction and stopping distance",
+    "checkpoint": "Concept checkpoints", "hands_on": "Hands-on exercise", "extension": "Extension",
+}
+router = APIRouter(include_in_schema=False)
+
+
+def _sign_in_redirect(request: Request) -> RedirectResponse:
+    target = request.url.path + (f"?{request.url.query}" if request.url.query else "")
+    return RedirectResponse(f"/sign-in?next={quote(target)}", status_code=status.HTTP_303_SEE_OTHER)
+
+
+def _not_found(request: Request, user, what: str) -> HTMLResponse:
+    return TEMPLATES.TemplateResponse(request, "not_found.html", {"user": user, "what": what},
+                                      status_code=status.HTTP_404_NOT_FOUND)
+
+
+def _readable(session, user, submission_id: int) -> Submission | None:
+    submission = session.get(Submission, submission_id) if 0 < submission_id < 2**63 else None
+    if submission is None or not crud.can_read(user=user, submission=submission):
+        return None
+    return submission
+
+
+@router.get("/", response_class=HTMLResponse)
+def home(request: Request, user: PageUser):
+    if user is None:
+        return _sign_in_redirect(request)
+    return RedirectResponse("/submissions", status_code=status.HTTP_303_SEE_OTHER)
+
+
+@router.get("/sign-in", response_class=HTMLResponse)
+def sign_in_form(request: Request, user: PageUser, next: str = "/submissions"):
+    return TEMPLATES.TemplateResponse(request, "sign_in.html", {"user": user, "next": _safe_next(next), "error": None})
+
+
+@router.post("/sign-in", response_class=HTMLResponse)
+def sign_in(request: Request, session: SessionDep, token: str = Form(""), next: str = Form("/submissions")):
+    user = crud.user_by_token(session=session, token=token.strip()) if token.strip() else None
+    if user is None:
+        return TEMPLATES.TemplateResponse(
+            request, "sign_in.html",
+            {"user": None, "next": _safe_next(next), "error": "That token is unknown or has been revoked."},
+            status_code=status.HTTP_401_UNAUTHORIZED)
+    response = RedirectResponse(_safe_next(next), status_code=status.HTTP_303_SEE_OTHER)
+    set_session_cookie(response, token.strip())
+    return response
+
+
+@router.post("/sign-out")
+def sign_out():
+    response = RedirectResponse("/sign-in", status_code=status.HTTP_303_SEE_OTHER)
+    clear_session_cookie(response)
+    return response
+
+
+def _safe_next(target: str) -> str:
+    """Only a path on this site: never an open redirect to another host."""
+    return target if target.startswith("/") and not target.startswith("//") else "/submissions"
+
+
+@router.get("/submissions", response_class=HTMLResponse)
+def submissions_page(request: Request, session: SessionDep, user: PageUser):
+    if user is None:
+        return _sign_in_redirect(request)
+    rows = crud.visible_submissions(session=session, user=user)
+    grades = {g.submission_id: g for g in session.scalars(
+        select(Grade).where(Grade.submission_id.in_([s.id for s in rows])))} if rows else {}
+    return TEMPLATES.TemplateResponse(request, "submissions.html",
+                                      {"user": user, "submissions": rows[::-1], "grades": grades})
+
+
+@router.get("/submissions/{submission_id}", response_class=HTMLResponse)
+def report_page(request: Request, submission_id: int, session: SessionDep, user: PageUser):
+    if user is None:
+        return _sign_in_redirect(request)
+    submission = _readable(session, user, submission_id)
+    if submission is None:
+        return _not_found(request, user, f"submission {submission_id}")
+    grade = session.scalar(select(Grade).where(Grade.submission_id == submission.id))
+    view = report_view(submission, grade)
+    return TEMPLATES.TemplateResponse(request, "report.html",
+                                      {"user": user, "view": view, "part_titles": PART_TITLES})
+
+
+@router.get("/submissions/{submission_id}/figures/{filename}")
+def figure_file(request: Request, submission_id: int, filename: str, session: SessionDep, user: PageUser):
+    if user is None:
+        return Response(status_code=status.HTTP_401_UNAUTHORIZED)
+    submission = _readable(session, user, submission_id)
+    path = figures_dir(submission) / filename if submission is not None else None
+    if path is None or "/" in filename or not filename.endswith(".png") or not path.is_file():
+        return _not_found(request, user, f"figure {filename}")
+    return FileResponse(path, media_type="image/png")
+
+
+@router.get("/submissions/{submission_id}/case-runs/{name}/{filename}")
+def evidence_file(request: Request, submission_id: int, name: str, filename: str, session: SessionDep,
+                  user: PageUser):
+    if user is None:
+        return _sign_in_redirect(request)
+    submission = _readable(session, user, submission_id)
+    run = next((r for r in submission.case_runs if r.name == name), None) if submission is not None else None
+    path = Path(run.artifact_dir) / filename if run is not None and run.artifact_dir else None
+    if path is None or filename not in EVIDENCE or not path.is_file():
+        return _not_found(request, user, f"file {filename} of case run {name}")
+    return FileResponse(path, media_type=EVIDENCE[filename], filename=f"{submission.id}-{name}-{filename}")

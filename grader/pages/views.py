@@ -1,0 +1,162 @@
+"""Stored rows -> what a report page shows: case-run states with time spent, items with their tolerances, provenance.
+
+Pure reads of the database rows and the stored grade; nothing here runs a case, grades or draws.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+
+from grader.models import CaseRun, Grade, Submission, utcnow
+from grader.settings import settings
+
+# A case still running after this long on a fresh worker is most likely compiling Genesis kernels (~100 s once).
+FIRST_RUN_NOTE_AFTER_S = 20.0
+VERDICT_LABEL = {
+    "credit": "credit", "no_credit": "no credit", "inconclusive": "inconclusive (not counted)",
+    "one_factor_violation": "config fault", "not_measured": "not measured",
+}
+
+
+@dataclass
+class RunRow:
+    name: str
+    kind: str
+    status: str
+    result_status: str | None
+    backend: str
+    actual_backend: str | None
+    elapsed_s: float | None
+    error: str | None
+    reused_from_id: int | None
+    provenance: dict
+    files: list[str]
+
+
+@dataclass
+class ItemRow:
+    id: str
+    part: str
+    kind: str
+    question: str
+    prediction: str
+    expected: str
+    measured: str
+    backends: str
+    tolerances: list[dict]
+    verdict: str
+    verdict_label: str
+    score: float
+    points: float
+    counted: bool
+    feedback: str
+
+
+@dataclass
+class ReportView:
+    submission: Submission
+    runs: list[RunRow]
+    grade: Grade | None
+    items: list[ItemRow] = field(default_factory=list)
+    parts: list[tuple[str, list[ItemRow]]] = field(default_factory=list)
+    config_findings: list[str] = field(default_factory=list)
+    figures: list[str] = field(default_factory=list)
+    check_line: str | None = None
+    first_run_note: bool = False
+
+    @property
+    def finished(self) -> bool:
+        return self.submission.status in ("graded", "failed")
+
+
+def _elapsed(run: CaseRun, now: datetime) -> float | None:
+    if run.started_at is None:
+        return None
+    return ((run.finished_at or now) - run.started_at).total_seconds()
+
+
+def _files(run: CaseRun) -> list[str]:
+    from grader.api.routes.files import EVIDENCE
+
+    if not run.artifact_dir or not Path(run.artifact_dir).is_dir():
+        return []
+    return [name for name in EVIDENCE if (Path(run.artifact_dir) / name).is_file()]
+
+
+def _prediction(text: str) -> str:
+    """'{"lane": "high"}' -> 'lane: high' (the stored prediction is the sheet's answer as JSON)."""
+    try:
+        value = json.loads(text)
+    except (TypeError, ValueError):
+        return text
+    if isinstance(value, dict):
+        return "; ".join(f"{k}: {_plain(v)}" for k, v in value.items())
+    return _plain(value)
+
+
+def _plain(value) -> str:
+    if isinstance(value, list):
+        return ", ".join(_plain(v) for v in value)
+    if isinstance(value, dict):
+        return ", ".join(f"{k} {_plain(v)}" for k, v in value.items())
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    return str(value)
+
+
+def _tolerance_rows(names: dict[str, str], rubric) -> list[dict]:
+    rows = []
+    for name, value in names.items():
+        record = rubric.tolerances.get(name) if rubric is not None else None
+        rows.append({"name": name, "value": value, "rationale": record.rationale if record else "",
+                     "reviewer": record.reviewer if record else "", "review_date": str(record.review_date) if record else ""})
+    return rows
+
+
+def _rubric(grade: Grade):
+    from rubric import load_rubric
+
+    try:
+        return load_rubric(grade.rubric_lesson, grade.rubric_version)
+    except Exception:  # a grade stays readable even if its rubric file is gone: tolerances then show bare values
+        return None
+
+
+def figures_dir(submission: Submission) -> Path:
+    return Path(settings.artifacts_dir) / "submissions" / str(submission.id) / "figures"
+
+
+def report_view(submission: Submission, grade: Grade | None) -> ReportView:
+    now = utcnow()
+    runs = [RunRow(name=r.name, kind=r.kind, status=r.status, result_status=r.result_status, backend=r.backend,
+                   actual_backend=r.actual_backend, elapsed_s=_elapsed(r, now), error=r.error,
+                   reused_from_id=r.reused_from_id, provenance=r.provenance or {}, files=_files(r))
+            for r in submission.case_runs]
+    view = ReportView(submission=submission, runs=runs, grade=grade)
+    view.first_run_note = any(r.status == "running" and (r.elapsed_s or 0) > FIRST_RUN_NOTE_AFTER_S for r in runs)
+    folder = figures_dir(submission)
+    view.figures = sorted(p.name for p in folder.glob("*.png")) if folder.is_dir() else []
+    if grade is None:
+        return view
+    report = grade.report
+    rubric = _rubric(grade)
+    for item in report.get("items", []):
+        counted = item["verdict"] != "inconclusive"
+        view.items.append(ItemRow(
+            id=item["id"], part=item["part"], kind=item["kind"], question=item["question"],
+            prediction=_prediction(item["prediction"]), expected=item["expected"], measured=item.get("measured", ""),
+            backends=", ".join(f"{case} on {backend}" for case, backend in item.get("backends", {}).items()),
+            tolerances=_tolerance_rows(item.get("tolerances", {}), rubric), verdict=item["verdict"],
+            verdict_label=VERDICT_LABEL.get(item["verdict"], item["verdict"]), score=item["score"],
+            points=item["points"], counted=counted, feedback=item["feedback"],
+        ))
+    parts: dict[str, list[ItemRow]] = {}
+    for row in view.items:
+        parts.setdefault(row.part, []).append(row)
+    view.parts = list(parts.items())
+    view.config_findings = report.get("config_findings", [])
+    view.check_line = report.get("check_line")
+    return view
