@@ -68,6 +68,11 @@ class ReportView:
     first_run_note: bool = False
 
     @property
+    def config_faults(self) -> list[str]:
+        """The findings that broke the one-factor rule (rubric.one_factor's wording for a violation)."""
+        return [f for f in self.config_findings if "too many inputs changed" in f]
+
+    @property
     def finished(self) -> bool:
         return self.submission.status in ("graded", "failed")
 

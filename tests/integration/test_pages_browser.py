@@ -1,0 +1,103 @@
+"""The pages in a real browser (Debian's chromium driven by Playwright) over the real stack: API over HTTP, a
+Celery worker on Redis, PostgreSQL, real Genesis runs. Screenshots are kept under out/screenshots/ (or
+$SCREENSHOTS_DIR) as test artifacts."""
+
+from __future__ import annotations
+
+import copy
+import os
+from pathlib import Path
+
+import pytest
+
+from tests.integration.helpers import submit_and_wait
+from tests.services import ROOT, reference_sheet
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+CHROMIUM = Path("/usr/bin/chromium")
+SHOTS = Path(os.environ.get("SCREENSHOTS_DIR", ROOT / "out" / "screenshots"))
+
+
+@pytest.fixture(scope="module")
+def browser():
+    from playwright.sync_api import sync_playwright
+
+    if not CHROMIUM.exists():
+        pytest.fail(f"{CHROMIUM} is missing: `make .venv/.installed` installs Debian's chromium")
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=str(CHROMIUM), headless=True, args=["--no-sandbox"])
+        yield browser
+        browser.close()
+
+
+@pytest.fixture(scope="module")
+def graded(stack):
+    """Alice's reference sheet and Bob's with one wrong prediction (H3: the high lane goes farther), both graded."""
+    _, alice = submit_and_wait(stack, reference_sheet(), who="alice")
+    wrong = copy.deepcopy(reference_sheet()) | {"student": "bob"}
+    wrong["answers"]["H3"]["high"] = "farther"
+    _, bob = submit_and_wait(stack, wrong, who="bob")
+    assert alice["status"] == bob["status"] == "graded", (alice, bob)
+    return {"alice": alice, "bob": bob}
+
+
+def _signed_in(browser, stack, who: str, *, width: int = 1280):
+    page = browser.new_page(viewport={"width": width, "height": 900})
+    page.goto(f"{stack.url}/submissions")
+    assert page.url.startswith(f"{stack.url}/sign-in")
+    page.fill("#token", stack.tokens[who])
+    page.click("button[type=submit]")
+    return page
+
+
+def test_a_student_signs_in_and_reads_her_report_item_by_item(browser, stack, graded):
+    submission = graded["alice"]["id"]
+    grade = stack.client("alice").grade(submission)
+    page = _signed_in(browser, stack, "alice")
+    page.click(f"a[href='/submissions/{submission}']")
+    page.wait_for_selector("#items")
+    assert page.inner_text("#total").split() == [f"{grade['total']:g}", "/", f"{grade['max_total']:g}", "points"]
+    rows = page.locator("#items tbody tr")
+    assert rows.count() == len(grade["items"])
+    for item in grade["items"]:
+        row = page.locator(f"#item-{item['id']}")
+        assert row.locator(".verdict").inner_text() in ("credit", "inconclusive (not counted)"), item["id"]
+        if item["measured"]:
+            assert item["measured"] in row.inner_text(), item["id"]
+    # A measured item shows its reviewed tolerance with the rationale behind it.
+    b3 = page.locator("#item-B3")
+    b3.locator("summary").first.click()
+    assert "high_lane_unchanged = 0.01 m" in b3.inner_text() and "reviewed by" in b3.inner_text()
+    # Every case ran on the CPU, and the page says so with the engine's own discretization.
+    runs = stack.client("alice").case_runs(submission)
+    assert page.locator("#case-runs tbody tr").count() == len(runs)
+    page.locator("#provenance summary").first.click()
+    provenance = page.locator("#provenance details").first.inner_text()
+    assert "cpu / cpu" in provenance and "genesis 1.3.3" in provenance
+    page.screenshot(path=SHOTS / "student_report.png", full_page=True)
+
+
+def test_a_lost_item_shows_what_the_measurement_showed_instead(browser, stack, graded):
+    submission = graded["bob"]["id"]
+    page = _signed_in(browser, stack, "bob")
+    page.goto(f"{stack.url}/submissions/{submission}")
+    h3 = page.locator("#item-H3")
+    assert "lost" in h3.get_attribute("class")
+    assert h3.locator(".verdict").inner_text() == "no credit"
+    text = h3.inner_text()
+    assert "high: farther" in text and "delta" in text and "sheet.table_exercise on cpu" in text
+    page.locator("#item-H3").scroll_into_view_if_needed()
+    page.screenshot(path=SHOTS / "student_report_lost_item.png", full_page=False)
+    phone = _signed_in(browser, stack, "bob", width=390)
+    phone.goto(f"{stack.url}/submissions/{submission}")
+    assert phone.evaluate("document.documentElement.scrollWidth") <= 390 + 1, "the report scrolls sideways on a phone"
+    phone.screenshot(path=SHOTS / "student_report_phone.png", full_page=False)
+
+
+def test_another_students_report_is_not_found_and_reveals_nothing(browser, stack, graded):
+    page = _signed_in(browser, stack, "alice")
+    response = page.goto(f"{stack.url}/submissions/{graded['bob']['id']}")
+    assert response.status == 404
+    assert "bob" not in page.inner_text("main") and "H3" not in page.content()
+    page.screenshot(path=SHOTS / "not_found.png")
