@@ -41,6 +41,9 @@ class Client:
     def case_runs(self, submission_id: int) -> list:
         return self._ok(self.http.get(f"/submissions/{submission_id}/case-runs"))
 
+    def dashboard(self, course: str) -> dict:
+        return self._ok(self.http.get(f"/courses/{course}/dashboard"))
+
     def wait(self, submission_id: int, *, poll_s: float = 1.0, on_progress: Callable[[dict], None] | None = None,
              timeout_s: float | None = None) -> dict:
         """Poll until graded or failed; on_progress gets every status body."""

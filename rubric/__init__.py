@@ -22,6 +22,7 @@ from .metrics import (
 from .results import CaseResult, Discretization, Provenance, expected_arrays, validate_arrays
 from .specs import CaseSpec, ContactCase, FieldChange, FrictionCase, describe_errors, field_changes, parse_case
 
+from .analysis import ClassAnalysis, class_analysis
 from .exports import grades_csv, gradescope_results
 from .governance import RegradePreview, RubricGovernanceError, publish_version, regrade_preview
 from .one_factor import ConfigFinding, one_factor_findings
@@ -30,6 +31,8 @@ from .scoring import ArchivedRubric, GradeReport, ItemGrade, cases_to_run, grade
 from .sheet import PredictionSheet, parse_sheet
 
 __all__ = [
+    "ClassAnalysis",
+    "class_analysis",
     "ArchivedRubric",
     "COLOR_SWAP",
     "Discretization",

@@ -67,3 +67,17 @@ def test_the_stylesheet_is_served_by_the_app(api):
     assert css.status_code == 200 and css.headers["content-type"].startswith("text/css") and ".verdict-credit" in css.text
     page = api.client.get("/sign-in")
     assert 'href="/static/style.css"' in page.text and "http://" not in page.text and "https://" not in page.text
+
+
+def test_the_dashboard_is_for_the_courses_staff_only(api):
+    _submit(api)
+    assert api.client.get("/v1/courses/l03/dashboard", headers=api.as_("alice")).status_code == 403
+    assert api.client.get("/v1/courses/l03/dashboard", headers=api.as_("eve")).status_code == 404
+    data = api.client.get("/v1/courses/l03/dashboard", headers=api.as_("prof")).json()
+    assert data["submissions_by_state"] == {"running": 1} and data["roster"][0]["student"] == "alice"
+    assert data["analysis"]["n_reports"] == 0 and data["problems"] == []
+    for who, code in (("alice", 404), ("eve", 404), ("prof", 200), ("tess", 200)):
+        page = api.client.get("/courses/l03/dashboard", headers=api.as_(who))
+        assert page.status_code == code, who
+    page = api.client.get("/courses/l03/dashboard", headers=api.as_("prof"))
+    assert "No graded submissions yet." in page.text and "alice" in page.text

@@ -33,13 +33,15 @@ def browser():
 
 @pytest.fixture(scope="module")
 def graded(stack):
-    """Alice's reference sheet and Bob's with one wrong prediction (H3: the high lane goes farther), both graded."""
-    _, alice = submit_and_wait(stack, reference_sheet(), who="alice")
+    """Three graded submissions: Alice's reference sheet twice, Bob's with one wrong prediction (H3: the high lane
+    goes farther)."""
+    _, first = submit_and_wait(stack, reference_sheet(), who="alice")
     wrong = copy.deepcopy(reference_sheet()) | {"student": "bob"}
     wrong["answers"]["H3"]["high"] = "farther"
     _, bob = submit_and_wait(stack, wrong, who="bob")
-    assert alice["status"] == bob["status"] == "graded", (alice, bob)
-    return {"alice": alice, "bob": bob}
+    _, alice = submit_and_wait(stack, reference_sheet(), who="alice")
+    assert first["status"] == alice["status"] == bob["status"] == "graded", (first, alice, bob)
+    return {"alice": alice, "bob": bob, "alice_first": first}
 
 
 def _signed_in(browser, stack, who: str, *, width: int = 1280):
@@ -101,3 +103,28 @@ def test_another_students_report_is_not_found_and_reveals_nothing(browser, stack
     assert response.status == 404
     assert "bob" not in page.inner_text("main") and "H3" not in page.content()
     page.screenshot(path=SHOTS / "not_found.png")
+
+
+def test_the_instructor_dashboard_shows_the_item_analysis_of_the_json(browser, stack, graded):
+    data = stack.client("prof").dashboard("l03-test")
+    page = _signed_in(browser, stack, "prof")
+    page.click("text=Class dashboard")
+    page.wait_for_selector("#item-analysis")
+    # Each student's latest graded attempt counts: whatever else the session graded, Bob's H3 is a wrong answer.
+    analysis = {item["id"]: item for item in data["analysis"]["items"]}
+    assert analysis["H3"]["credit_share"] < 1.0
+    assert any("farther" in w["prediction"] for w in analysis["H3"]["wrong_answers"])
+    rows = page.locator("#item-analysis tbody tr")
+    assert rows.count() == len(analysis)
+    for item_id, item in analysis.items():
+        cells = page.locator(f"#analysis-{item_id} td")
+        assert cells.nth(1).inner_text() == str(item["n"]), item_id
+        assert cells.nth(2).inner_text().strip() == f"{round(100 * item['credit_share'])}%", item_id
+        for wrong in item["wrong_answers"]:
+            assert f"{wrong['prediction']} \u00d7 {wrong['count']}" in cells.nth(5).inner_text(), item_id
+    roster = {r["student"]: r for r in data["roster"]}
+    assert roster["alice"]["submission_id"] == graded["alice"]["id"] and roster["alice"]["attempts"] >= 2
+    assert page.locator("#roster").inner_text().count("alice") == 1
+    page.screenshot(path=SHOTS / "instructor_dashboard.png", full_page=True)
+    student = _signed_in(browser, stack, "alice")
+    assert student.goto(f"{stack.url}/courses/l03-test/dashboard").status == 404
