@@ -107,6 +107,21 @@ def report_page(request: Request, submission_id: int, session: SessionDep, user:
                                       {"user": user, "view": view, "part_titles": PART_TITLES})
 
 
+@router.get("/submissions/{submission_id}/results.json")
+def results_download(request: Request, submission_id: int, session: SessionDep, user: PageUser):
+    """The stored grade report (every item with prediction, expected, evidence, tolerances and verdict) as JSON."""
+    if user is None:
+        return _sign_in_redirect(request)
+    submission = _readable(session, user, submission_id)
+    grade = session.scalar(select(Grade).where(Grade.submission_id == submission.id)) if submission else None
+    if grade is None:
+        return _not_found(request, user, f"grade of submission {submission_id}")
+    from fastapi.responses import JSONResponse
+
+    return JSONResponse(grade.report, headers={
+        "Content-Disposition": f'attachment; filename="submission-{submission.id}-results.json"'})
+
+
 @router.get("/submissions/{submission_id}/figures/{filename}")
 def figure_file(request: Request, submission_id: int, filename: str, session: SessionDep, user: PageUser):
     if user is None:

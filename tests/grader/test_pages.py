@@ -81,3 +81,10 @@ def test_the_dashboard_is_for_the_courses_staff_only(api):
         assert page.status_code == code, who
     page = api.client.get("/courses/l03/dashboard", headers=api.as_("prof"))
     assert "No graded submissions yet." in page.text and "alice" in page.text
+
+
+def test_results_json_is_there_once_graded_and_only_for_who_may_read_it(api):
+    submission = _submit(api)
+    # Not graded yet: nothing to download, and the page says so rather than failing.
+    assert api.client.get(f"/submissions/{submission}/results.json", headers=api.as_("alice")).status_code == 404
+    assert api.client.get(f"/submissions/{submission}/results.json", headers=api.as_("bob")).status_code == 404

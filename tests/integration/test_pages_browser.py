@@ -77,6 +77,9 @@ def test_a_student_signs_in_and_reads_her_report_item_by_item(browser, stack, gr
     page.locator("#provenance summary").first.click()
     provenance = page.locator("#provenance details").first.inner_text()
     assert "cpu / cpu" in provenance and "genesis 1.3.3" in provenance
+    download = page.request.get(f"{stack.url}/submissions/{submission}/results.json")  # with the session cookie
+    assert download.ok and download.json()["total"] == grade["total"]
+    assert [i["id"] for i in download.json()["items"]] == [i["id"] for i in grade["items"]]
     page.screenshot(path=SHOTS / "student_report.png", full_page=True)
 
 
