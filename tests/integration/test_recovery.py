@@ -13,7 +13,7 @@ from sqlalchemy.orm import Session
 from grader.models import utcnow
 from tests import services
 from tests.integration.helpers import case_runs, events, grades_of, wait_until
-from tests.services import reference_sheet
+from tests.factories import reference_sheet
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 

@@ -10,7 +10,7 @@ import pytest
 
 from rubric import expected_arrays, parse_case
 from tests.integration.helpers import case_runs, events, grades_of, submit_and_wait
-from tests.services import reference_sheet
+from tests.factories import reference_sheet
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 

@@ -5,10 +5,8 @@ from __future__ import annotations
 import copy
 import datetime as dt
 import json
-from pathlib import Path
 
 import pytest
-import yaml
 from pydantic import ValidationError
 
 from rubric import (
@@ -22,9 +20,7 @@ from rubric import (
 )
 from rubric.governance import rubric_changes
 from rubric.rubrics import parse_rubric, rubric_versions
-from rubric.scoring import SHEET_CASE_PREFIX
-
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "l03"
+from tests.factories import reference_sheet, sheet_results
 
 
 def edited(rubric, *, version=None, review=None, **tolerances):
@@ -102,9 +98,7 @@ def test_a_new_version_needs_its_own_review_records():
 
 def _results(measured):
     """The reference sheet's configs equal friction-table-0.30 and N5 up to their names: reuse those measurements."""
-    sheet = parse_sheet(yaml.safe_load((EXAMPLES / "reference.yaml").read_text()))
-    return {**measured, SHEET_CASE_PREFIX + "table_exercise": measured["friction-table-0.30"],
-            SHEET_CASE_PREFIX + "extension": measured["N5"]}, sheet
+    return sheet_results(measured), parse_sheet(reference_sheet())
 
 
 def test_regrade_under_a_new_version_previews_the_per_student_diff_and_keeps_old_grades(measured):
