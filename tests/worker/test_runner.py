@@ -55,7 +55,7 @@ def test_friction_lanes_record_their_frictions_and_start_at_the_declared_speed(m
     result = measured["friction-table-0.30"]
     a = result.arrays
     # The frictions the built scene's geometries carry, and what the engine's collider assigned to live contacts.
-    assert float(a["low_table_friction"]) == pytest.approx(0.30) and float(a["low_cube_friction"]) == pytest.approx(0.20)
+    assert float(a["low_table_friction"]) == pytest.approx(0.30) and float(a["low_cube_friction"]) == pytest.approx(0.10)
     assert float(a["high_cube_friction"]) == pytest.approx(0.80)
     for lane, expected in (("low", 0.30), ("high", 0.80)):
         touching = a[f"{lane}_contact_friction"][a[f"{lane}_contact_friction"] > 0]
