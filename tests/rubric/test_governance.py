@@ -19,8 +19,8 @@ from rubric import (
     publish_version,
     regrade_preview,
 )
-from rubric.governance import rubric_changes
 from rubric import rubrics
+from rubric.governance import rubric_changes
 from rubric.rubrics import parse_rubric, rubric_versions
 from tests.factories import reference_sheet, sheet_results
 
