@@ -17,7 +17,8 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+from tests.factories import ROOT
+
 PG_ADMIN_URL = os.environ.get("TEST_POSTGRES_URL", "postgresql+psycopg2://postgres@127.0.0.1:5432/test")
 REDIS_URL = os.environ.get("TEST_REDIS_URL", "redis://127.0.0.1:6379/11")
 # Safety stop for waits on real processes; never an assertion about speed.
@@ -126,12 +127,3 @@ def children(pid: int) -> list[int]:
             out += [int(c) for c in (task / "children").read_text().split()]
     return out
 
-
-def reference_sheet() -> dict:
-    """The rubric's example sheet (examples/l03/reference.*)."""
-    from grader.client import load_sheet
-
-    found = sorted((ROOT / "examples" / "l03").glob("reference.*"))
-    if not found:
-        pytest.fail("examples/l03/reference.yaml is missing")
-    return load_sheet(found[0])

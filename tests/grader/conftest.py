@@ -6,6 +6,8 @@ from dataclasses import dataclass, field
 
 import pytest
 
+from tests.factories import create_people
+
 
 @dataclass
 class Api:
@@ -22,7 +24,7 @@ def api(tmp_path, monkeypatch):
     from fastapi.testclient import TestClient
     from sqlalchemy.orm import Session
 
-    from grader import crud, dispatch
+    from grader import dispatch
     from grader.core import db
     from grader.main import app
     from grader.settings import settings
@@ -32,15 +34,8 @@ def api(tmp_path, monkeypatch):
     monkeypatch.setattr(settings, "artifacts_dir", tmp_path / "artifacts")
     monkeypatch.setattr(db, "_engine", None)
     db.migrate(url)
-    tokens = {}
     with Session(db.get_engine()) as session:
-        course = crud.get_or_create_course(session=session, name="l03")
-        other = crud.get_or_create_course(session=session, name="other")
-        for name, role, c in (("alice", "student", course), ("bob", "student", course),
-                              ("prof", "instructor", course), ("tess", "auditor", course),
-                              ("eve", "instructor", other)):
-            user = crud.get_or_create_user(session=session, course=c, name=name, role=role)
-            tokens[name] = crud.create_token(session=session, user=user)
+        tokens = create_people(session, course="l03", other_course="other")
         session.commit()
     state = Api(client=TestClient(app), tokens=tokens)
     monkeypatch.setattr(dispatch, "send_case_run", lambda *args: state.sent.append(args))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.services import reference_sheet
+from tests.factories import reference_sheet
 
 
 @pytest.fixture

@@ -8,7 +8,7 @@ import json
 import pytest
 from sqlalchemy import func, select
 
-from tests.services import reference_sheet
+from tests.factories import reference_sheet
 
 
 def counts() -> tuple[int, int]:

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from tests import services
+from tests.factories import create_people
 
 
 @dataclass
@@ -30,7 +31,6 @@ class Stack:
 
 @pytest.fixture(scope="session")
 def stack(tmp_path_factory):
-    from grader import crud
     from grader.core.db import make_engine, migrate
 
     redis = services.redis_client()
@@ -43,16 +43,8 @@ def stack(tmp_path_factory):
         engine = make_engine(database_url)
         from sqlalchemy.orm import Session
 
-        tokens = {}
         with Session(engine) as session:
-            course = crud.get_or_create_course(session=session, name="l03-test")
-            other = crud.get_or_create_course(session=session, name="other-course")
-            for name, role, c in (("alice", "student", course), ("bob", "student", course),
-                                  ("prof", "instructor", course), ("tess", "auditor", course),
-                                  ("eve", "instructor", other)):
-                tokens[name] = crud.create_token(session=session,
-                                                 user=crud.get_or_create_user(session=session, course=c, name=name,
-                                                                              role=role))
+            tokens = create_people(session, course="l03-test", other_course="other-course")
             session.commit()
         env = dict(os.environ, DATABASE_URL=database_url, BROKER_URL=services.REDIS_URL, DATA_DIR=str(data_dir),
                    CASE_TIME_LIMIT_S="600", PYTHONPATH=str(services.ROOT))

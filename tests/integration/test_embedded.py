@@ -9,6 +9,7 @@ import sys
 
 import pytest
 
+from rubric import load_rubric
 from tests import services
 
 pytestmark = [pytest.mark.slow]
@@ -29,7 +30,16 @@ def test_embedded_run_grades_the_example_sheet_without_servers(tmp_path):
     report = tmp_path / "data" / "reports" / "submission-1" / "grade.json"
     assert f"report: {report}" in out
     grade = json.loads(report.read_text())
-    assert grade["items"] and 0 < grade["total"] <= grade["max_total"]
+    # The example sheet is the reference answer: every item of the current rubric at its full points.
+    rubric = load_rubric("L03")
+    full_marks = sum(item.points for item in rubric.items)
+    assert (grade["rubric_version"], grade["rubric_hash"]) == (rubric.version, rubric.content_hash)
+    assert {i["id"]: i["max_score"] for i in grade["items"]} == {item.id: item.points for item in rubric.items}
+    short = [(i["id"], i["verdict"], i["feedback"]) for i in grade["items"]
+             if i["verdict"] != "credit" or i["score"] != i["max_score"]]
+    assert not short, short
+    assert grade["total"] == grade["max_total"] == full_marks
+    assert f"GRADE {full_marks:g} / {full_marks:g}" in out
     runs = json.loads((report.parent / "case-runs.json").read_text())
     assert runs and all(r["status"] == "done" and r["provenance"]["actual_backend"] == "cpu" for r in runs)
     assert (tmp_path / "data" / "grader.db").is_file()

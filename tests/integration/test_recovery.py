@@ -7,13 +7,15 @@ import signal
 import subprocess
 import sys
 from datetime import timedelta
+
 import pytest
 from sqlalchemy.orm import Session
 
 from grader.models import utcnow
+from rubric import load_rubric
 from tests import services
 from tests.integration.helpers import case_runs, events, grades_of, wait_until
-from tests.services import reference_sheet
+from tests.factories import reference_sheet
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -94,5 +96,18 @@ def test_rocm_waits_visibly_then_fails_on_a_worker_without_rocm_never_on_cpu(sta
         assert run["backend"] == "rocm" and run["status"] == "failed"
         assert run["actual_backend"] in (None, "rocm") and "provenance error" in run["error"], run["error"]
         assert run["tries"] == 1  # a case failure is a result, never retried or moved to another backend
-    assert final["status"] in ("graded", "failed")
-    assert grades_of(stack, created["id"]) == (1 if final["status"] == "graded" else 0)
+    # A failed case is a result, so the submission is graded on what it holds: every item decided by a measurement
+    # is "not measured" (naming the rocm failure), every other item is decided from the answers alone.
+    assert final["status"] == "graded", final
+    assert grades_of(stack, created["id"]) == 1
+    rubric = load_rubric("L03")
+    kinds = {item.id: item.kind for item in rubric.items}
+    grade = client.grade(created["id"])
+    assert [i["id"] for i in grade["items"]] == list(kinds)
+    for item in grade["items"]:
+        if kinds[item["id"]] == "measured":
+            assert (item["verdict"], item["score"]) == ("not_measured", 0), item
+        else:
+            assert item["verdict"] == "credit", item  # the reference answers, decided without a run
+    assert any("failed on rocm: provenance error" in i["feedback"] for i in grade["items"])
+    assert grade["total"] == sum(item.points for item in rubric.items if item.kind != "measured") < grade["max_total"]

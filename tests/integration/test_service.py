@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+import csv
 import io
+from importlib.metadata import version
 
 import httpx
 import numpy as np
 import pytest
 
-from rubric import expected_arrays, parse_case
+from grader import reuse
+from rubric import case_metrics, cases_to_run, expected_arrays, load_rubric, parse_case, parse_sheet
+from rubric.metrics import parse_metrics
 from tests.integration.helpers import case_runs, events, grades_of, submit_and_wait
-from tests.services import reference_sheet
+from tests.factories import reference_sheet
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -22,31 +26,39 @@ def first(stack):
     return created, final
 
 
-def test_reference_sheet_is_graded_with_provenance_for_every_case_run(stack, first):
+def test_reference_sheet_gets_full_marks_from_cpu_measurements_of_exactly_its_cases(stack, first):
     created, final = first
     assert final["status"] == "graded", final
-    assert final["progress"]["done"] == final["progress"]["total"] > 0
+    specs = {spec.name: spec for spec in cases_to_run(parse_sheet(reference_sheet()))}
+    assert final["progress"]["done"] == final["progress"]["total"] == len(specs)
     client = stack.client()
+    # The reference answers earn every item of the current rubric, at that item's points.
     grade = client.grade(created["id"])
-    assert grade["items"] and grade["max_total"] > 0
-    for item in grade["items"]:
-        assert {"id", "question", "score", "max_score", "verdict", "feedback"} <= set(item)
-        assert 0 <= item["score"] <= item["max_score"]
-    assert grade["total"] == pytest.approx(sum(i["score"] for i in grade["items"]))
+    rubric = load_rubric("L03")
+    assert (grade["rubric_version"], grade["rubric_hash"]) == (rubric.version, rubric.content_hash)
+    assert [i["id"] for i in grade["items"]] == [item.id for item in rubric.items]
+    for stored, item in zip(grade["items"], rubric.items):
+        assert (stored["verdict"], stored["score"], stored["max_score"]) == ("credit", item.points, item.points), stored
+    assert grade["total"] == grade["max_total"] == sum(item.points for item in rubric.items)
     runs = client.case_runs(created["id"])
+    assert sorted(run["name"] for run in runs) == sorted(specs)
     for run in runs:
         assert run["status"] == "done" and run["result_status"] == "ok", run
+        assert parse_case(run["spec"]) == specs[run["name"]]  # what ran is what the sheet asked for
         prov = run["provenance"]
         assert prov["requested_backend"] == prov["actual_backend"] == run["actual_backend"] == run["backend"] == "cpu"
-        assert prov["case"] == run["name"] and prov["versions"]["genesis"]
-        assert len(run["content_key"]) == 64
-    # The measured arrays are downloadable and are what the spec promises.
-    run = runs[0]
-    response = httpx.get(f"{stack.url}/v1/submissions/{created['id']}/case-runs/{run['name']}/files/arrays.npz",
-                         headers={"Authorization": f"Bearer {stack.tokens['alice']}"})
-    assert response.status_code == 200
-    with np.load(io.BytesIO(response.content), allow_pickle=False) as npz:
-        assert set(npz.files) == set(expected_arrays(parse_case(run["spec"])))
+        assert prov["case"] == run["name"] and prov["versions"]["genesis"] == version("genesis-world")
+        inputs = reuse.key_inputs(run["spec"], backend=run["backend"], precision=run["precision"])
+        assert run["content_key"] == reuse.content_key(inputs)
+        # The downloadable arrays are what the spec promises, and the stored metrics were computed from them.
+        response = httpx.get(f"{stack.url}/v1/submissions/{created['id']}/case-runs/{run['name']}/files/arrays.npz",
+                             headers={"Authorization": f"Bearer {stack.tokens['alice']}"})
+        assert response.status_code == 200
+        with np.load(io.BytesIO(response.content), allow_pickle=False) as npz:
+            arrays = {name: npz[name] for name in npz.files}
+        spec = parse_case(run["spec"])
+        assert set(arrays) == set(expected_arrays(spec))
+        assert parse_metrics(run["metrics"]) == case_metrics(spec, arrays), run["name"]
     assert grades_of(stack, created["id"]) == 1
 
 
@@ -65,17 +77,57 @@ def test_same_configs_again_reuse_the_measurements_and_say_so(stack, first):
     assert stack.client("bob").grade(again["id"])["total"] == stack.client().grade(created["id"])["total"]
 
 
-def test_instructor_sees_the_course_and_exports_grades(stack, first):
+@pytest.fixture(scope="module")
+def misconceived(stack, first):
+    """A second graded submission that loses A4 (same measurements, reused), so exports must carry real scores."""
+    sheet = reference_sheet()
+    sheet["answers"]["A4"]["same_length"] = True  # "equal substep_dt means equal array length"
+    created, final = submit_and_wait(stack, sheet)
+    assert final["status"] == "graded", final
+    a4 = next(i for i in stack.client("prof").grade(created["id"])["items"] if i["id"] == "A4")
+    assert (a4["verdict"], a4["score"]) == ("no_credit", 0), a4
+    return created
+
+
+def test_course_csv_matches_every_stored_grade(stack, first, misconceived):
+    prof = stack.client("prof")
+    headers = {"Authorization": f"Bearer {stack.tokens['prof']}"}
+    listed = httpx.get(f"{stack.url}/v1/courses/l03-test/submissions", headers=headers).json()
+    graded = sorted((s for s in listed if s["status"] == "graded"), key=lambda s: s["id"])
+    assert {first[0]["id"], misconceived["id"]} <= {s["id"] for s in graded}
+    response = httpx.get(f"{stack.url}/v1/courses/l03-test/grades.csv", headers=headers)
+    assert response.status_code == 200
+    rows = list(csv.DictReader(io.StringIO(response.text)))
+    assert len(rows) == len(graded)  # one row per graded submission, in submission order
+    for row, submission in zip(rows, graded):
+        grade = prof.grade(submission["id"])
+        assert (row["student"], row["rubric_version"]) == (submission["student"], grade["rubric_version"])
+        assert (float(row["total"]), float(row["max_total"])) == (grade["total"], grade["max_total"])
+        scores = {i["id"]: None if i["verdict"] == "inconclusive" else i["score"] for i in grade["items"]}
+        assert {i: float(row[i]) if row[i] else None for i in scores} == scores, submission["id"]
+
+
+def test_gradescope_results_match_the_stored_grade(stack, first, misconceived):
+    prof = {"Authorization": f"Bearer {stack.tokens['prof']}"}
+    for submission_id in (first[0]["id"], misconceived["id"]):
+        grade = stack.client("prof").grade(submission_id)
+        results = httpx.get(f"{stack.url}/v1/submissions/{submission_id}/gradescope.json", headers=prof).json()
+        assert results["score"] == grade["total"]
+        assert f"{grade['total']:g} / {grade['max_total']:g}" in results["output"]
+        assert f"rubric version {grade['rubric_version']} " in results["output"]
+        assert [(t["name"].split(":")[0], t["score"], t["max_score"], t["output"]) for t in results["tests"]] == [
+            (i["id"], i["score"], i["max_score"], i["feedback"]) for i in grade["items"]]
+
+
+def test_course_views_and_exports_respect_roles(stack, first):
     created, _ = first
     prof = {"Authorization": f"Bearer {stack.tokens['prof']}"}
     listed = httpx.get(f"{stack.url}/v1/courses/l03-test/submissions", headers=prof).json()
     assert created["id"] in [s["id"] for s in listed]
-    csv = httpx.get(f"{stack.url}/v1/courses/l03-test/grades.csv", headers=prof)
-    assert csv.status_code == 200 and "alice" in csv.text
-    results = httpx.get(f"{stack.url}/v1/submissions/{created['id']}/gradescope.json", headers=prof).json()
-    assert results["tests"]
     student = {"Authorization": f"Bearer {stack.tokens['alice']}"}
     assert httpx.get(f"{stack.url}/v1/courses/l03-test/grades.csv", headers=student).status_code == 403
+    assert httpx.get(f"{stack.url}/v1/submissions/{created['id']}/gradescope.json",
+                     headers=student).status_code == 403
     figures = httpx.get(f"{stack.url}/v1/submissions/{created['id']}/figures", headers=student, timeout=120)
     assert figures.status_code == 200 and figures.json()
     png = httpx.get(f"{stack.url}/v1/submissions/{created['id']}/figures/{figures.json()[0]}", headers=student)

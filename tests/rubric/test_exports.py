@@ -6,25 +6,22 @@ import csv
 import dataclasses
 import io
 import json
-from pathlib import Path
 
 import pytest
-import yaml
 
 from rubric import grade_sheet, grades_csv, gradescope_results, load_rubric, parse_sheet
 from rubric.exports import CSV_FIXED_COLUMNS
 from rubric.scoring import SHEET_CASE_PREFIX
+from tests.factories import reference_sheet, sheet_results
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "l03"
 GRADESCOPE_TOP = {"score", "execution_time", "output", "tests"}
 GRADESCOPE_TEST = {"name", "score", "max_score", "output", "visibility"}
 
 
 @pytest.fixture(scope="module")
 def reports(measured):
-    data = yaml.safe_load((EXAMPLES / "reference.yaml").read_text())
-    results = {**measured, SHEET_CASE_PREFIX + "table_exercise": measured["friction-table-0.30"],
-               SHEET_CASE_PREFIX + "extension": measured["N5"]}
+    data = reference_sheet()
+    results = sheet_results(measured)
     good = grade_sheet(parse_sheet(data), results)
     data["student"], data["answers"]["A4"]["same_length"] = "bob", True
     bob = grade_sheet(parse_sheet(data), results)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import copy
 import datetime as dt
 import json
-from pathlib import Path
 
 import pytest
 import yaml
@@ -20,11 +19,10 @@ from rubric import (
     publish_version,
     regrade_preview,
 )
+from rubric import rubrics
 from rubric.governance import rubric_changes
 from rubric.rubrics import parse_rubric, rubric_versions
-from rubric.scoring import SHEET_CASE_PREFIX
-
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "l03"
+from tests.factories import reference_sheet, sheet_results
 
 
 def edited(rubric, *, version=None, review=None, **tolerances):
@@ -43,13 +41,28 @@ NEW_REVIEW = {"reviewer": "second reviewer", "review_date": "2026-12-01"}
 
 
 def test_load_rubric_latest_and_by_version():
-    rubric = load_rubric()
-    assert rubric.lesson == "L03" and rubric.version == rubric_versions("L03")[-1]
-    assert load_rubric("L03", "1").content_hash == load_rubric("L03", "1").content_hash
+    versions = rubric_versions("L03")
+    assert len(versions) >= 2, "the archived v1 and at least one current version ship"
+    by_version = {v: load_rubric("L03", v) for v in versions}
+    assert {r.version for r in by_version.values()} == set(versions)
+    assert len({r.content_hash for r in by_version.values()}) == len(versions)  # each version its own content
+    latest = load_rubric()
+    assert latest.lesson == "L03" and latest.version == versions[-1] != "1"
+    assert latest.content_hash == by_version[versions[-1]].content_hash != by_version["1"].content_hash
     with pytest.raises(LookupError, match="no rubric version '9'"):
         load_rubric("L03", "9")
     with pytest.raises(LookupError, match="no rubric files for lesson 'L99'"):
         load_rubric("L99")
+
+
+def test_latest_means_the_highest_version_number_not_the_last_file_name(tmp_path, monkeypatch):
+    current = load_rubric("L03")
+    for version in ("2", "10", "9"):
+        data = current.model_dump(mode="json") | {"version": version}
+        (tmp_path / f"L03-v{version}.yaml").write_text(yaml.safe_dump(data))
+    monkeypatch.setattr(rubrics, "LESSONS_DIR", tmp_path)
+    assert rubric_versions("L03") == ["2", "9", "10"]
+    assert load_rubric("L03").version == "10"  # as text, "9" > "2" > "10"
 
 
 def test_every_tolerance_carries_its_review_record():
@@ -102,9 +115,7 @@ def test_a_new_version_needs_its_own_review_records():
 
 def _results(measured):
     """The reference sheet's configs equal friction-table-0.30 and N5 up to their names: reuse those measurements."""
-    sheet = parse_sheet(yaml.safe_load((EXAMPLES / "reference.yaml").read_text()))
-    return {**measured, SHEET_CASE_PREFIX + "table_exercise": measured["friction-table-0.30"],
-            SHEET_CASE_PREFIX + "extension": measured["N5"]}, sheet
+    return sheet_results(measured), parse_sheet(reference_sheet())
 
 
 def test_regrade_under_a_new_version_previews_the_per_student_diff_and_keeps_old_grades(measured):
@@ -136,7 +147,7 @@ def test_regrade_under_a_new_version_previews_the_per_student_diff_and_keeps_old
     h3 = next(c for c in bob.changed_items if c.id == "H3")
     assert (h3.old_verdict, h3.new_verdict) == ("no_credit", "credit")
     assert {r.student for r in preview.changed} == {"reference", "bob"}
-    # Previewing (and committing, which stores the new reports beside them) never rewrites the old grades.
+    # Previewing never rewrites the old grades.
     assert {k: r.model_dump() for k, r in old.items()} == before
     assert all(r.rubric_version == "2" for r in old.values())
 

@@ -17,9 +17,9 @@ from grader.cli import grade as grade_module
 from grader.cli.grade import grade
 from rubric import CaseResult, GradeReport, load_rubric
 from rubric import field_changes
+from tests.factories import REFERENCE_YAML, reference_sheet
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "l03"
-REFERENCE = yaml.safe_load((EXAMPLES / "reference.yaml").read_text())
+REFERENCE = reference_sheet()
 
 
 @pytest.fixture
@@ -51,7 +51,7 @@ def write(tmp_path: Path, data: dict, name: str = "sheet.yaml") -> Path:
 
 def test_grades_the_reference_sheet_and_writes_every_export(engine, tmp_path):
     out = tmp_path / "out"
-    result = CliRunner().invoke(grade, [str(EXAMPLES / "reference.yaml"), "--out", str(out)])
+    result = CliRunner().invoke(grade, [str(REFERENCE_YAML), "--out", str(out)])
     assert result.exit_code == 0, result.output
     rubric = load_rubric("L03")
     assert f"total: {rubric.max_total:g} / {rubric.max_total:g} (rubric L03 v{rubric.version}" in result.stdout
@@ -67,7 +67,7 @@ def test_grades_the_reference_sheet_and_writes_every_export(engine, tmp_path):
 
 
 def test_json_flag_prints_only_the_report_on_stdout(engine, tmp_path):
-    result = CliRunner().invoke(grade, [str(EXAMPLES / "reference.yaml"), "--out", str(tmp_path), "--json"])
+    result = CliRunner().invoke(grade, [str(REFERENCE_YAML), "--out", str(tmp_path), "--json"])
     assert result.exit_code == 0, result.output
     report = GradeReport.model_validate_json(result.stdout)
     assert report.rubric_version == load_rubric("L03").version
@@ -126,7 +126,7 @@ def test_unmeasured_cases_exit_2_and_show_not_measured(engine, tmp_path):
 
 
 def test_unknown_rubric_version_is_a_clear_error(engine, tmp_path):
-    result = CliRunner().invoke(grade, [str(EXAMPLES / "reference.yaml"), "--out", str(tmp_path),
+    result = CliRunner().invoke(grade, [str(REFERENCE_YAML), "--out", str(tmp_path),
                                         "--rubric-version", "99"])
     assert result.exit_code == 1 and "no rubric version '99'" in result.output
 
@@ -135,7 +135,7 @@ def test_unknown_rubric_version_is_a_clear_error(engine, tmp_path):
 def test_end_to_end_on_real_genesis(tmp_path):
     """No replacement: the command runs every needed case through the engine (warm mode) and grades them."""
     out = tmp_path / "out"
-    result = CliRunner().invoke(grade, [str(EXAMPLES / "reference.yaml"), "--out", str(out), "--json"])
+    result = CliRunner().invoke(grade, [str(REFERENCE_YAML), "--out", str(out), "--json"])
     assert result.exit_code == 0, result.output
     report = GradeReport.model_validate_json(result.stdout)
     assert report.complete and report.total == report.max_total == load_rubric("L03").max_total

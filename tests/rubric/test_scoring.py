@@ -7,17 +7,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
 import dataclasses
 
 from rubric import COLOR_SWAP, ArchivedRubric, CaseResult, cases_to_run, grade_sheet, load_rubric, parse_sheet
 from rubric.rubrics import Tolerance
 from rubric.scoring import CHECKS
+from tests.factories import reference_sheet, two_lanes
 from worker import run_cases
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "l03"
-REFERENCE = yaml.safe_load((EXAMPLES / "reference.yaml").read_text())
+REFERENCE = reference_sheet()
 
 # Each misconception named in the issue, as the answers a student holding it would give.
 MISCONCEPTIONS = {
@@ -44,8 +43,7 @@ def table_exercise(friction: float, *, swap_colors: bool = False) -> dict:
     config = {"kind": "friction", "name": f"table-{friction:.2f}",
               "table": {"size": [2.0, 0.6, 0.05], "pos": [0.8, 0.0, 0.7], "friction": friction}}
     if swap_colors:
-        config["lanes"] = [{"name": "low", "friction": 0.1, "y": -0.15, "color": [0.1, 0.3, 1.0]},
-                           {"name": "high", "friction": 0.8, "y": 0.15, "color": [1.0, 0.5, 0.0]}]
+        config["lanes"] = two_lanes(swap_colors=True)
     return {"table_exercise": config}
 
 
@@ -184,9 +182,7 @@ def test_swapped_lane_colours_in_the_hands_on_config_are_one_factor_and_graded_o
 TWO_FACTOR = {
     # The issue's example: a changed cube density in the hands-on config.
     "cube density": ({"cube_rho": 800.0}, "cube_rho: 500.0 -> 800.0"),
-    "a lane's friction": ({"lanes": [{"name": "low", "friction": 0.2, "y": -0.15, "color": [1.0, 0.5, 0.0]},
-                                     {"name": "high", "friction": 0.8, "y": 0.15, "color": [0.1, 0.3, 1.0]}]},
-                          "lanes.0.friction: 0.1 -> 0.2"),
+    "a lane's friction": ({"lanes": two_lanes(low_friction=0.2)}, "lanes.0.friction: 0.1 -> 0.2"),
 }
 
 

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import copy
-from pathlib import Path
-
 import pytest
 import yaml
 from pydantic import ValidationError
@@ -12,13 +10,13 @@ from pydantic import ValidationError
 from rubric import BASELINE_CASES, describe_errors, load_rubric, one_factor_findings, parse_sheet
 from rubric import field_changes
 from rubric.sheet import Answers, Configs
+from tests.factories import EXAMPLES, reference_sheet, two_lanes
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "l03"
 
 
 @pytest.fixture
 def reference() -> dict:
-    return yaml.safe_load((EXAMPLES / "reference.yaml").read_text())
+    return reference_sheet()
 
 
 def errors_of(data: dict) -> list[str]:
@@ -106,10 +104,7 @@ def test_reference_configs_change_one_declared_factor(reference):
 
 def test_two_factor_config_is_reported_field_by_field(reference):
     data = copy.deepcopy(reference)
-    data["configs"]["table_exercise"]["lanes"] = [
-        {"name": "low", "friction": 0.2, "y": -0.15, "color": [1.0, 0.5, 0.0]},
-        {"name": "high", "friction": 0.8, "y": 0.15, "color": [0.1, 0.3, 1.0]},
-    ]
+    data["configs"]["table_exercise"]["lanes"] = two_lanes(low_friction=0.2)
     data["configs"]["table_exercise"]["initial_speed"] = 3.0
     finding = one_factor_findings(parse_sheet(data), load_rubric("L03"))["table_exercise"]
     assert not finding.ok
