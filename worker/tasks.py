@@ -11,7 +11,7 @@ from sqlalchemy.exc import OperationalError as DatabaseError
 
 from grader.core.db import new_session
 from grader.settings import settings
-from worker import executor
+from worker import slot
 from worker.celery_app import app
 
 INFRA_ERRORS = (DatabaseError, BrokerError, OSError)
@@ -25,7 +25,7 @@ def run_case_run(case_run_id: int, attempt: int) -> None:
     from grader.runs import execute
 
     with new_session() as session:
-        to_grade = execute(session=session, case_run_id=case_run_id, attempt=attempt, runner=executor.run)
+        to_grade = execute(session=session, case_run_id=case_run_id, attempt=attempt, runner=slot.run_case_in_slot)
     if to_grade is not None:
         send_grade(to_grade)
 
@@ -39,5 +39,5 @@ def grade_submission(submission_id: int) -> None:
 
 
 @worker_process_shutdown.connect
-def _close_executor(**_) -> None:
-    executor.close()
+def _close_slot(**_) -> None:
+    slot.close_slot()
