@@ -56,7 +56,7 @@ app.conf.update(
     task_reject_on_worker_lost=True,
     worker_prefetch_multiplier=1,
     task_ignore_result=True,
-    # The runner stops a case at case_time_limit_s and returns a timeout result; these only catch a hung task.
+    # worker.case_process stops a case at case_time_limit_s and returns a timeout result; these only catch a hung task.
     task_soft_time_limit=settings.case_time_limit_s + 60,
     task_time_limit=settings.case_time_limit_s + 120,
     task_serializer="json",
