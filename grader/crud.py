@@ -8,7 +8,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.core.security import hash_token, new_token
-from grader.models import ROLES, ApiToken, CaseRun, Course, Event, Submission, User, utcnow
+from grader.models import ROLES, ApiToken, CaseRun, Course, Event, Submission, User
 
 
 def get_or_create_course(*, session: Session, name: str) -> Course:
@@ -83,9 +83,3 @@ def can_read(*, user: User, submission: Submission) -> bool:
     if user.role == "student":
         return submission.student_id == user.id
     return submission.course_id == user.course_id
-
-
-def touch(submission: Submission, state: str, detail: str | None = None, *, session: Session) -> None:
-    submission.status = state
-    submission.updated_at = utcnow()
-    session.add(Event(submission_id=submission.id, state=state, detail=detail))

@@ -1,4 +1,4 @@
-"""Sending work to Celery by task name (no task import, so the API never loads the runner)."""
+"""Sending work to Celery by task name (no task import, so the API never loads the tasks or case execution)."""
 
 from __future__ import annotations
 

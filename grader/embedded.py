@@ -42,9 +42,9 @@ def bootstrap() -> dict[str, str]:
 def start_worker(log_path: Path) -> subprocess.Popen:
     env = dict(os.environ, DATA_DIR=str(settings.data_dir.absolute()), DATABASE_URL=settings.database_url,
                BROKER_URL=settings.broker_url, ARTIFACTS_DIR=str(settings.artifacts_dir))
-    command = [sys.executable, "-m", "celery", "-A", "worker.celery_app", "worker", "-Q", "cpu,grade", "-c", "1",
-               "--pool", "prefork", "-n", "embedded@%h", "--loglevel", "info", "--without-gossip",
-               "--without-mingle", "--without-heartbeat"]
+    from worker.celery_app import worker_argv
+
+    command = worker_argv(("cpu", "grade"), name="embedded@%h", heartbeat=False)
     return subprocess.Popen(command, cwd=ROOT, env=env, stdout=log_path.open("ab"), stderr=subprocess.STDOUT,
                             start_new_session=True)
 

@@ -118,7 +118,7 @@ class CaseRun(Base):
 
 
 class Measurement(Base):
-    """A validated result, reusable by content key (see grader.reuse for what the key covers)."""
+    """A validated result, reusable by content key (see worker.reuse for what the key covers)."""
 
     __tablename__ = "measurements"
 

@@ -1,9 +1,10 @@
-"""Case execution: the Genesis runner (isolated and warm case processes) and, later, the Celery tasks.
+"""Case execution: the Genesis case processes (isolated and warm), the Celery app and its tasks.
 
 The parent-side API here never imports Genesis; only worker.engine does, inside a case process.
 """
 
-from .errors import ProvenanceError, RenderError, RunnerError
-from .runner import WarmExecutor, load_result, run_case, run_cases
+from .case_process import WarmCaseProcess, load_result, run_case, run_cases
+from .errors import CaseExecutionError, ProvenanceError, RenderError
 
-__all__ = ["ProvenanceError", "RenderError", "RunnerError", "WarmExecutor", "load_result", "run_case", "run_cases"]
+__all__ = ["CaseExecutionError", "ProvenanceError", "RenderError", "WarmCaseProcess", "load_result", "run_case",
+           "run_cases"]

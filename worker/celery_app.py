@@ -1,10 +1,10 @@
 """The Celery app: one queue per backend (cpu, rocm, cuda) plus `grade`; reliability options in one place.
 
-Worker commands (one per queue; concurrency 1 because each slot holds a ~0.8 GB warm Genesis process):
-  cpu   celery -A worker.celery_app worker -Q cpu,grade -c 1 -n cpu@%h
-  rocm  celery -A worker.celery_app worker -Q rocm -c 1 -n rocm@%h     (ROCm torch image, /dev/kfd, /dev/dri)
-  cuda  celery -A worker.celery_app worker -Q cuda -c 1 -n cuda@%h
-Or `grader worker --queue cpu` which runs the same thing.
+Worker commands (one per queue; concurrency 1 because each slot holds a ~0.8 GB warm Genesis process), built by
+`worker_argv` for `grader worker` and the embedded service:
+  cpu   grader worker --queue cpu --queue grade
+  rocm  grader worker --queue rocm     (ROCm torch image, /dev/kfd, /dev/dri)
+  cuda  grader worker --queue cuda
 
 Embedded broker (no server): kombu's filesystem transport under DATA_DIR/broker. Measured on the 2-core dev machine
 (20 no-op tasks, one solo worker): filesystem median 0.21 s / max 0.42 s from send to start; the SQLAlchemy
@@ -14,6 +14,9 @@ reconciler covers. Deployment uses Redis (BROKER_URL=redis://...).
 """
 
 from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
 
 from celery import Celery
 from kombu import Queue
@@ -53,7 +56,7 @@ app.conf.update(
     task_reject_on_worker_lost=True,
     worker_prefetch_multiplier=1,
     task_ignore_result=True,
-    # The runner stops a case at case_time_limit_s and returns a timeout result; these only catch a hung task.
+    # worker.case_process stops a case at case_time_limit_s and returns a timeout result; these only catch a hung task.
     task_soft_time_limit=settings.case_time_limit_s + 60,
     task_time_limit=settings.case_time_limit_s + 120,
     task_serializer="json",
@@ -62,3 +65,13 @@ app.conf.update(
     broker_transport_options=transport_options(settings.broker_url),
     worker_hijack_root_logger=False,
 )
+
+
+def worker_argv(queues: Sequence[str], *, name: str, loglevel: str = "info", heartbeat: bool = True) -> list[str]:
+    """The command line of one Celery worker slot on `queues`: prefork, concurrency 1, no gossip or mingle.
+
+    heartbeat=False also drops worker heartbeats (the embedded service, one worker on a filesystem broker).
+    """
+    argv = [sys.executable, "-m", "celery", "-A", "worker.celery_app", "worker", "-Q", ",".join(queues), "-c", "1",
+            "--pool", "prefork", "-n", name, "--loglevel", loglevel, "--without-gossip", "--without-mingle"]
+    return argv if heartbeat else [*argv, "--without-heartbeat"]

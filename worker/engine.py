@@ -1,7 +1,7 @@
 """Genesis-side execution of one case: init on the exact backend, build, step, sample, render, write evidence.
 
-Imported only inside a case process (isolated child or warm executor). The only module that touches `genesis`.
-Both execution modes call `execute`, so they cannot drift into different physics.
+Imported only inside a case process (worker.isolated_process or worker.warm_process). The only module that touches
+`genesis`. Both execution modes call `run_case_in_genesis`, so they cannot drift into different physics.
 """
 
 from __future__ import annotations
@@ -316,7 +316,7 @@ def _dist_version(name: str) -> str:
         return "absent"
 
 
-def execute(spec: ContactCase | FrictionCase, out_dir: Path, *, mode: str) -> int:
+def run_case_in_genesis(spec: ContactCase | FrictionCase, out_dir: Path, *, mode: str) -> int:
     """Run one case and write arrays.npz + provenance.json into out_dir. Returns the process exit status.
 
     On failure nothing is written but the error on stderr: no arrays, so no partial result can be mistaken for one.

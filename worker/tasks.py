@@ -1,4 +1,4 @@
-"""Thin Celery tasks: ids in, lifecycle in grader.runs / grader.grading, retries for infrastructure failures only.
+"""Thin Celery tasks: ids in, the work in worker.case_run / worker.grading, retries for infrastructure failures only.
 
 A case that fails (wrong backend, crash, timeout) is a result, stored as such, never retried on another backend.
 """
@@ -11,8 +11,8 @@ from sqlalchemy.exc import OperationalError as DatabaseError
 
 from grader.core.db import new_session
 from grader.settings import settings
-from worker import executor
-from worker.celery_app import app
+from worker import slot
+from worker.celery_app import GRADE_QUEUE, app
 
 INFRA_ERRORS = (DatabaseError, BrokerError, OSError)
 RETRY = dict(autoretry_for=INFRA_ERRORS, max_retries=settings.max_infra_retries, retry_backoff=2,
@@ -21,23 +21,23 @@ RETRY = dict(autoretry_for=INFRA_ERRORS, max_retries=settings.max_infra_retries,
 
 @app.task(name="worker.tasks.run_case_run", **RETRY)
 def run_case_run(case_run_id: int, attempt: int) -> None:
-    from grader.dispatch import send_grade
-    from grader.runs import execute
+    from worker.case_run import process_case_run
 
     with new_session() as session:
-        to_grade = execute(session=session, case_run_id=case_run_id, attempt=attempt, runner=executor.run)
+        to_grade = process_case_run(session=session, case_run_id=case_run_id, attempt=attempt,
+                                    run_case=slot.run_case_in_slot)
     if to_grade is not None:
-        send_grade(to_grade)
+        grade_submission.apply_async(args=[to_grade], queue=GRADE_QUEUE)
 
 
 @app.task(name="worker.tasks.grade_submission", **RETRY)
 def grade_submission(submission_id: int) -> None:
-    from grader.grading import grade_submission as grade
+    from worker.grading import grade_submission as grade
 
     with new_session() as session:
         grade(session=session, submission_id=submission_id)
 
 
 @worker_process_shutdown.connect
-def _close_executor(**_) -> None:
-    executor.close()
+def _close_slot(**_) -> None:
+    slot.close_slot()

@@ -17,24 +17,24 @@ from rubric import get_case
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("out/bench"),
               show_default=True)
 def bench(cases: str, repeats: int, out_dir: Path) -> None:
-    """Time each case as an isolated process and in one warm executor, interleaved, and print medians and ratios."""
-    from worker import WarmExecutor, run_case
+    """Time each case as an isolated process and in one warm case process, interleaved, and print medians and ratios."""
+    from worker import WarmCaseProcess, run_case
 
     specs = [get_case(name.strip()) for name in cases.split(",")]
     wall = {(s.name, m): [] for s in specs for m in ("isolated", "warm")}
     steps = {s.name: [] for s in specs}
-    with WarmExecutor() as warm:
+    with WarmCaseProcess() as warm:
         # The warm process's first case pays import + init + kernel loading; time it separately, not as a case.
         started = time.perf_counter()
         first = warm.run(specs[0], out_dir / "warmup")
-        click.echo(f"warm executor start-up (first case {specs[0].name}): {time.perf_counter() - started:.2f} s")
+        click.echo(f"warm case process start-up (first case {specs[0].name}): {time.perf_counter() - started:.2f} s")
         if not first.ok:
             raise click.ClickException(f"warm-up failed: {first.error}")
         for r in range(repeats):
             # Interleave modes so machine noise hits both alike.
             for spec in specs:
                 for mode in ("isolated", "warm"):
-                    kwargs = {"executor": warm} if mode == "warm" else {}
+                    kwargs = {"warm_process": warm} if mode == "warm" else {}
                     result = run_case(spec, out_dir / f"{mode}-{r}" / spec.name, mode=mode, **kwargs)
                     if not result.ok:
                         raise click.ClickException(f"{spec.name} ({mode}) failed: {result.error}")

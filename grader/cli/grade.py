@@ -18,8 +18,8 @@ CONFIG_SUFFIXES = (".yaml", ".yml", ".json")
 EXIT_INCOMPLETE = 2
 
 
-def execute(specs, out_root: Path, mode: str, progress) -> dict:
-    """Run cases on real Genesis (the one expensive dependency; tests replace this function)."""
+def run_cases_locally(specs, out_root: Path, mode: str, progress) -> dict:
+    """Run cases in case processes on this machine (the one expensive dependency; tests replace this function)."""
     from worker import run_cases
 
     return run_cases(specs, out_root, mode=mode, progress=progress)
@@ -86,9 +86,9 @@ def grade(sheet_file: Path, configs_dir: Path | None, out_dir: Path, as_json: bo
         log(("config " if finding.ok else "config NOT RUN: ") + finding.describe())
     specs = cases_to_run(sheet, rubric)
     log(f"running {len(specs)} cases ({mode}): {', '.join(s.name for s in specs)}")
-    results = execute(specs, out_dir / "cases", mode,
-                      lambda r: log(f"  {r.spec.name}: {r.status} on {r.backend} in {r.wall_s:.1f} s"
-                                    + (f" ({r.error})" if r.error else "")))
+    results = run_cases_locally(specs, out_dir / "cases", mode,
+                                lambda r: log(f"  {r.spec.name}: {r.status} on {r.backend} in {r.wall_s:.1f} s"
+                                              + (f" ({r.error})" if r.error else "")))
     report = grade_sheet(sheet, results, rubric)
 
     out_dir.mkdir(parents=True, exist_ok=True)

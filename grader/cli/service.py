@@ -51,10 +51,9 @@ def token(course: str, name: str, role: str) -> None:
 @click.option("--loglevel", default="info", show_default=True)
 def worker(queues: tuple[str, ...], loglevel: str) -> None:
     """Run a Celery worker: one slot holding one warm Genesis process (prefork, concurrency 1)."""
-    name = f"{'-'.join(queues)}@%h"
-    argv = [sys.executable, "-m", "celery", "-A", "worker.celery_app", "worker", "-Q", ",".join(queues),
-            "-c", "1", "--pool", "prefork", "-n", name, "--loglevel", loglevel, "--without-gossip", "--without-mingle"]
-    os.execv(sys.executable, argv)
+    from worker.celery_app import worker_argv
+
+    os.execv(sys.executable, worker_argv(queues, name=f"{'-'.join(queues)}@%h", loglevel=loglevel))
 
 
 @click.command()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from grader import reuse
+from worker import reuse
 
 
 def test_the_migration_creates_exactly_the_models(tmp_path):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from rubric import CONTACT_CASES, get_case, with_backend
-from worker import WarmExecutor, run_case, run_cases
+from worker import WarmCaseProcess, run_case, run_cases
 
 pytestmark = pytest.mark.slow
 
@@ -83,7 +83,7 @@ def test_gpu_request_without_device_fails_with_provenance_error_and_leaves_no_re
 
 
 def test_warm_executor_is_recycled_after_a_failed_case(tmp_path):
-    with WarmExecutor() as executor:
+    with WarmCaseProcess() as executor:
         first = executor.run(get_case("N3"), tmp_path / "a")
         failed = executor.run(with_backend(get_case("N3"), backend="cuda"), tmp_path / "b")
         again = executor.run(get_case("N3"), tmp_path / "c")

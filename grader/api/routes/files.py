@@ -41,7 +41,7 @@ def list_figures(submission: SubmissionDep) -> list[str]:
         if submission.status != "graded":
             raise HTTPException(status.HTTP_409_CONFLICT, f"submission {submission.id} is {submission.status}")
         from grader.figures import lab_figures
-        from grader.grading import stored_result
+        from grader.core.lifecycle import stored_result
 
         results = {run.name: stored_result(run) for run in submission.case_runs if run.status == "done"}
         lab_figures(results, folder)

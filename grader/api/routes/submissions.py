@@ -9,7 +9,7 @@ from fastapi import APIRouter, HTTPException, status
 from pydantic import ValidationError
 from sqlalchemy import select
 
-from grader import crud, dispatch, grading
+from grader import crud, dispatch, sheets
 from grader.api.deps import CurrentUser, SessionDep, SubmissionDep
 from grader.api.errors import error, field_errors
 from grader.api.responses import AUTH, FORBIDDEN, INVALID, NOT_FOUND
@@ -41,8 +41,8 @@ def create_submission(body: SubmissionCreate, session: SessionDep, user: Current
     if problems := non_finite(body.sheet):
         return error(422, "invalid sheet", problems)
     try:
-        sheet = grading.parse_sheet(body.sheet)
-        specs = grading.cases_to_run(sheet)
+        sheet = sheets.parse_sheet(body.sheet)
+        specs = sheets.cases_to_run(sheet)
     except ValidationError as exc:
         from rubric import describe_errors
 

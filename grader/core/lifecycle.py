@@ -1,22 +1,22 @@
-"""Case-run lifecycle in the database: claim a delivery, reuse or store a measurement, finish, start grading once.
+"""Case-run and submission state in the database: claim, store a measured or reused result, finish, grade once.
 
-Plain functions called by the thin Celery tasks in worker.tasks; the runner is a parameter (a callable
-spec, out_dir -> CaseResult), so the lifecycle is testable without Genesis and never imports it.
+The neutral core shared by the API and the worker: plain functions on a session, no Celery, no case process, no
+engine. worker.case_run decides what to do with a claimed run and worker.grading grades; this module records it,
+and reads a stored result back (`stored_result`) for grading and the API's figures.
 """
 
 from __future__ import annotations
 
 import os
 import socket
-from collections.abc import Callable
 from datetime import timedelta
 from pathlib import Path
+from typing import Any
 
 from sqlalchemy import func, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from grader import reuse
 from grader.models import CaseRun, Event, Measurement, Submission, utcnow
 from grader.settings import settings
 
@@ -63,42 +63,21 @@ def claim(*, session: Session, case_run_id: int, attempt: int) -> tuple[CaseRun 
     return run, False
 
 
-def reusable(*, session: Session, run: CaseRun) -> Measurement | None:
-    inputs = reuse.key_inputs(run.spec, backend=run.backend, precision=run.precision)
-    run.content_key = reuse.content_key(inputs)
-    if run.submission.force_rerun:
-        return None
-    return session.scalar(select(Measurement).where(Measurement.content_key == run.content_key))
+def store_reused(*, session: Session, run: CaseRun, measurement: Measurement) -> bool:
+    """Finish the run on a stored measurement of the same content key; True when this moved it to grading."""
+    run.measurement_id, run.reused_from_id = measurement.id, measurement.case_run_id
+    run.provenance, run.artifact_dir = measurement.provenance, measurement.artifact_dir
+    run.metrics = measurement.metrics
+    run.actual_backend, run.result_status = measurement.backend, "ok"
+    detail = f"reused measurement {measurement.id} of case run {measurement.case_run_id}"
+    return _finish(session, run, status="done", detail=detail)
 
 
-def execute(*, session: Session, case_run_id: int, attempt: int, runner: Callable) -> int | None:
-    """Claim, reuse or run, store, finish. Returns the submission id when this call moved it to grading."""
-    run, started_grading = claim(session=session, case_run_id=case_run_id, attempt=attempt)
-    session.commit()
-    if run is None:
-        return _submission_of(session, case_run_id) if started_grading else None
-    measurement = reusable(session=session, run=run)
-    if measurement is not None:
-        run.measurement_id, run.reused_from_id = measurement.id, measurement.case_run_id
-        run.provenance, run.artifact_dir = measurement.provenance, measurement.artifact_dir
-        run.metrics = measurement.metrics
-        run.actual_backend, run.result_status = measurement.backend, "ok"
-        detail = f"reused measurement {measurement.id} of case run {measurement.case_run_id}"
-        return run.submission_id if _finish(session, run, status="done", detail=detail) else None
-    session.commit()
-    from rubric import parse_case
+def store_result(*, session: Session, run: CaseRun, result, key_inputs: dict[str, Any]) -> bool:
+    """Record a CaseResult (ok or not) on the run; True when this moved the submission to grading.
 
-    out_dir = Path(settings.artifacts_dir) / "case-runs" / str(run.id) / f"try-{run.tries}"
-    result = runner(parse_case(run.spec), out_dir)
-    return run.submission_id if store_result(session=session, run=run, result=result) else None
-
-
-def _submission_of(session: Session, case_run_id: int) -> int:
-    return session.get(CaseRun, case_run_id).submission_id
-
-
-def store_result(*, session: Session, run: CaseRun, result) -> bool:
-    """Record a CaseResult (ok or not) on the run; an ok one becomes a reusable Measurement."""
+    An ok result becomes a reusable Measurement under run.content_key, the key of `key_inputs` (worker.reuse).
+    """
     provenance = result.provenance.model_dump(mode="json") if result.provenance else None
     run.result_status, run.error, run.wall_s = result.status, result.error, result.wall_s
     run.provenance, run.artifact_dir = provenance, result.out_dir
@@ -106,16 +85,15 @@ def store_result(*, session: Session, run: CaseRun, result) -> bool:
     run.actual_backend = result.provenance.actual_backend if result.provenance else None
     run.stderr_tail = (result.stderr or "")[-4000:] or None
     if result.ok:
-        _record_measurement(session, run, provenance)
+        _record_measurement(session, run, provenance, key_inputs)
     return _finish(session, run, status="done" if result.ok else "failed",
                    detail=f"{result.status} in {result.wall_s:.1f} s" + (f": {result.error}" if result.error else ""))
 
 
-def _record_measurement(session: Session, run: CaseRun, provenance: dict) -> None:
-    inputs = reuse.key_inputs(run.spec, backend=run.backend, precision=run.precision)
+def _record_measurement(session: Session, run: CaseRun, provenance: dict, key_inputs: dict[str, Any]) -> None:
     try:
         with session.begin_nested():
-            m = Measurement(content_key=reuse.content_key(inputs), key_inputs=inputs, case_run_id=run.id,
+            m = Measurement(content_key=run.content_key, key_inputs=key_inputs, case_run_id=run.id,
                             backend=run.actual_backend, provenance=provenance, metrics=run.metrics,
                             artifact_dir=run.artifact_dir)
             session.add(m)
@@ -145,3 +123,29 @@ def _finish(session: Session, run: CaseRun, *, status: str, error: str | None = 
             session.add(Event(submission_id=submission.id, state="grading"))
     session.commit()
     return started
+
+
+def touch(submission: Submission, state: str, detail: str | None = None, *, session: Session) -> None:
+    """Move a submission to `state`, with a timestamped event."""
+    submission.status = state
+    submission.updated_at = utcnow()
+    session.add(Event(submission_id=submission.id, state=state, detail=detail))
+
+
+def stored_result(run: CaseRun):
+    """The CaseResult a case run stands for, read back from its stored provenance and .npz arrays."""
+    import numpy as np
+
+    from rubric import CaseResult, Provenance, parse_case
+    from rubric.metrics import parse_metrics
+
+    spec = parse_case(run.spec)
+    provenance = Provenance.model_validate(run.provenance) if run.provenance else None
+    if run.status != "done" or run.result_status != "ok":
+        return CaseResult(spec=spec, status=run.result_status or "failed", provenance=provenance,
+                          error=run.error or f"case run ended {run.status}", out_dir=run.artifact_dir)
+    with np.load(Path(run.artifact_dir) / "arrays.npz", allow_pickle=False) as npz:
+        arrays = {name: npz[name] for name in npz.files}
+    metrics = parse_metrics(run.metrics) if run.metrics else None
+    return CaseResult(spec=spec, status="ok", arrays=arrays, provenance=provenance, metrics=metrics,
+                      out_dir=run.artifact_dir, wall_s=run.wall_s or 0.0)

@@ -1,8 +1,9 @@
 """Parent side of case execution: start a case process, keep its output, validate what it wrote, return a result.
 
-Never imports Genesis: the case runs in a child (`isolated`, one process per case, the lesson's contract) or in a
-long-lived `warm` executor process (a fresh scene per case, recycled after a bounded number of cases or any error).
-Either way the parent accepts arrays only after checking shapes, finiteness and provenance against the spec.
+Never imports Genesis: the case runs in an isolated case process (`worker.isolated_process`, one process per case,
+the lesson's contract) or in a warm case process (`worker.warm_process`, long-lived, a fresh scene per case, recycled
+after a bounded number of cases or any error). Either way the parent accepts arrays only after checking shapes,
+finiteness and provenance against the spec.
 """
 
 from __future__ import annotations
@@ -31,9 +32,9 @@ WARM_MAX_CASES = 50
 EVIDENCE_FILES = ("arrays.npz", "arrays.tmp.npz", "provenance.json", "metrics.json", "stdout.txt", "stderr.txt")
 
 
-def _child_env() -> dict[str, str]:
+def _case_process_env() -> dict[str, str]:
     env = dict(os.environ)
-    # Headless rendering needs EGL; set before Genesis is imported in the child so a warm process can render too.
+    # Headless rendering needs EGL; set before Genesis is imported in the case process so a warm one can render too.
     env.setdefault("PYOPENGL_PLATFORM", "egl")
     return env
 
@@ -54,22 +55,22 @@ def run_case(
     *,
     mode: str = "isolated",
     timeout_s: float = DEFAULT_TIMEOUT_S,
-    executor: "WarmExecutor | None" = None,
+    warm_process: "WarmCaseProcess | None" = None,
 ) -> CaseResult:
     """Run one case and return its validated result; failures come back as results too, never as exceptions."""
     out_dir = Path(out_dir)
     if mode == "warm":
-        if executor is None:
-            with WarmExecutor() as own:
+        if warm_process is None:
+            with WarmCaseProcess() as own:
                 return own.run(spec, out_dir, timeout_s=timeout_s)
-        return executor.run(spec, out_dir, timeout_s=timeout_s)
+        return warm_process.run(spec, out_dir, timeout_s=timeout_s)
     if mode != "isolated":
         raise ValueError(f"mode must be 'isolated' or 'warm', got {mode!r}")
     spec_path = _prepare(spec, out_dir)
     started = time.perf_counter()
-    command = [sys.executable, "-m", "worker.child", str(spec_path), str(out_dir)]
+    command = [sys.executable, "-m", "worker.isolated_process", str(spec_path), str(out_dir)]
     try:
-        done = subprocess.run(command, capture_output=True, text=True, timeout=timeout_s, env=_child_env())
+        done = subprocess.run(command, capture_output=True, text=True, timeout=timeout_s, env=_case_process_env())
         status, stdout, stderr = done.returncode, done.stdout, done.stderr
     except subprocess.TimeoutExpired as exc:
         status = None
@@ -147,7 +148,7 @@ def _read(path: Path) -> str:
     return path.read_text(errors="replace") if path.exists() else ""
 
 
-class WarmExecutor:
+class WarmCaseProcess:
     """One long-lived Genesis process building a fresh scene per case; recycled after max_cases or any failure."""
 
     def __init__(self, *, max_cases: int = WARM_MAX_CASES):
@@ -158,7 +159,7 @@ class WarmExecutor:
         self._reply = None
         self._log = None
 
-    def __enter__(self) -> "WarmExecutor":
+    def __enter__(self) -> "WarmCaseProcess":
         return self
 
     def __exit__(self, *exc) -> None:
@@ -168,12 +169,12 @@ class WarmExecutor:
         read_fd, write_fd = os.pipe()
         self._log = tempfile.TemporaryFile()
         self._proc = subprocess.Popen(
-            [sys.executable, "-m", "worker.warm", str(write_fd)],
+            [sys.executable, "-m", "worker.warm_process", str(write_fd)],
             stdin=subprocess.PIPE,
             stdout=self._log,
             stderr=self._log,
             pass_fds=(write_fd,),
-            env=_child_env(),
+            env=_case_process_env(),
             text=True,
         )
         os.close(write_fd)
@@ -243,9 +244,9 @@ def run_cases(
         return result
 
     if mode == "warm":
-        with WarmExecutor() as executor:
+        with WarmCaseProcess() as warm_process:
             for spec in specs:
-                results[spec.name] = done(executor.run(spec, out_root / spec.name, timeout_s=timeout_s))
+                results[spec.name] = done(warm_process.run(spec, out_root / spec.name, timeout_s=timeout_s))
         return results
     with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
         futures = [(spec, pool.submit(run_case, spec, out_root / spec.name, timeout_s=timeout_s)) for spec in specs]

@@ -1,4 +1,7 @@
-"""Isolated case process: `python -m worker.child SPEC.json OUT_DIR` runs one case and exits (the lesson's way)."""
+"""Isolated case process: `python -m worker.isolated_process SPEC.json OUT_DIR` runs one case and exits.
+
+The lesson's way, one fresh process per case; used for audits.
+"""
 
 import sys
 from pathlib import Path
@@ -11,9 +14,9 @@ def main(argv: list[str]) -> int:
     import json
 
     spec = parse_case(json.loads(spec_path.read_text()))
-    from .engine import execute
+    from .engine import run_case_in_genesis
 
-    return execute(spec, out_dir, mode="isolated")
+    return run_case_in_genesis(spec, out_dir, mode="isolated")
 
 
 if __name__ == "__main__":

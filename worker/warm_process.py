@@ -24,7 +24,7 @@ def _redirect(stdout_path: str, stderr_path: str) -> None:
 
 
 def main(reply_fd: int) -> int:
-    from .engine import execute
+    from .engine import run_case_in_genesis
     from .errors import EXIT_ERROR
 
     reply = os.fdopen(reply_fd, "w", buffering=1)
@@ -34,7 +34,7 @@ def main(reply_fd: int) -> int:
         _redirect(str(out_dir / "stdout.txt"), str(out_dir / "stderr.txt"))
         try:
             spec = parse_case(json.loads(Path(request["spec"]).read_text()))
-            status = execute(spec, out_dir, mode="warm")
+            status = run_case_in_genesis(spec, out_dir, mode="warm")
         except Exception:
             traceback.print_exc()
             status = EXIT_ERROR

@@ -1,0 +1,31 @@
+"""The case-execution slot of one Celery worker process: its warm case process, made on the first case and kept.
+
+The warm case process recycles itself after warm_max_cases or any failure; `close_slot` ends it when the worker
+process shuts down.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from grader.settings import settings
+
+_warm_process = None
+
+
+def run_case_in_slot(spec, out_dir: Path):
+    """Run one case in this slot's warm case process (or isolated, per settings); always returns a CaseResult."""
+    global _warm_process
+    from worker.case_process import WarmCaseProcess, run_case
+
+    if settings.execution_mode == "warm" and _warm_process is None:
+        _warm_process = WarmCaseProcess(max_cases=settings.warm_max_cases)
+    return run_case(spec, out_dir, mode=settings.execution_mode, timeout_s=settings.case_time_limit_s,
+                    warm_process=_warm_process)
+
+
+def close_slot() -> None:
+    global _warm_process
+    if _warm_process is not None:
+        _warm_process.close()
+        _warm_process = None
