@@ -1,4 +1,4 @@
-"""The Genesis runner on real Genesis (CPU): isolated and warm modes, provenance, backend refusal, rendering."""
+"""Case processes on real Genesis (CPU): isolated and warm modes, provenance, backend refusal, rendering."""
 
 import json
 from pathlib import Path
@@ -82,14 +82,14 @@ def test_gpu_request_without_device_fails_with_provenance_error_and_leaves_no_re
     assert json.loads((tmp_path / "spec.json").read_text())["backend"] == backend
 
 
-def test_warm_executor_is_recycled_after_a_failed_case(tmp_path):
-    with WarmCaseProcess() as executor:
-        first = executor.run(get_case("N3"), tmp_path / "a")
-        failed = executor.run(with_backend(get_case("N3"), backend="cuda"), tmp_path / "b")
-        again = executor.run(get_case("N3"), tmp_path / "c")
+def test_a_warm_case_process_is_replaced_after_a_failed_case(tmp_path):
+    with WarmCaseProcess() as warm:
+        first = warm.run(get_case("N3"), tmp_path / "a")
+        failed = warm.run(with_backend(get_case("N3"), backend="cuda"), tmp_path / "b")
+        again = warm.run(get_case("N3"), tmp_path / "c")
     assert first.ok and again.ok and failed.status == "failed"
     assert "PROVENANCE ERROR" in failed.stderr  # captured per case inside the warm process
-    assert executor.processes_started == 2
+    assert warm.processes_started == 2
     assert first.provenance.pid != again.provenance.pid
     np.testing.assert_array_equal(first.arrays["z"], again.arrays["z"])
 
