@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from tests.services import reference_sheet
+from tests.factories import reference_sheet
 
 
 def _submit(api, who="alice") -> int:

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from tests.integration.helpers import submit_and_wait
-from tests.services import ROOT, reference_sheet
+from tests.factories import ROOT, reference_sheet
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 CHROMIUM = Path("/usr/bin/chromium")

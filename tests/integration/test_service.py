@@ -10,7 +10,7 @@ import httpx
 import numpy as np
 import pytest
 
-from grader import reuse
+from worker import reuse
 from rubric import case_metrics, cases_to_run, expected_arrays, load_rubric, parse_case, parse_sheet
 from rubric.metrics import parse_metrics
 from tests.integration.helpers import case_runs, events, grades_of, submit_and_wait
