@@ -1,4 +1,5 @@
-"""Grade a submission once its last case run finished: the rubric engine on the stored measurements.
+"""Grade a submission once its last case run finished: the rubric engine on the stored measurements, then the
+lab figures drawn from the same results (never inside an API request).
 
 The worker-side body of the `grade_submission` task; state changes go through grader.core.lifecycle.
 """
@@ -12,7 +13,8 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from grader.core.lifecycle import stored_result, touch
-from grader.models import Grade, Submission, utcnow
+from grader.models import Event, Grade, Submission, utcnow
+from grader.settings import settings
 
 
 def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
@@ -38,11 +40,13 @@ def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
         touch(submission, "failed", submission.error, session=session)
         session.commit()
         return None
+    figures_note = draw_figures(submission.id, results)
     grade = Grade(submission_id=submission.id, rubric_lesson=book.lesson, rubric_version=str(book.version),
                   rubric_hash=book.content_hash, total=report.total, max_total=report.max_total,
                   report=report.model_dump(mode="json"), execution_s=time.perf_counter() - started)
     session.add(grade)
     submission.graded_at = utcnow()
+    session.add(Event(submission_id=submission.id, state="figures", detail=figures_note))
     touch(submission, "graded", f"{report.total:g} / {report.max_total:g}", session=session)
     try:
         session.commit()
@@ -50,3 +54,19 @@ def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
         session.rollback()
         return None
     return grade
+
+
+def draw_figures(submission_id: int, results: dict) -> str:
+    """The lab figures of a submission's results, drawn before its grade is stored so a graded submission has them.
+
+    A drawing failure never blocks or changes the grade: it is recorded (the returned note becomes an event) and
+    the pages show the submission without figures.
+    """
+    from worker.figures import lab_figures
+
+    folder = settings.figures_dir(submission_id)
+    try:
+        paths = lab_figures({name: r for name, r in results.items() if r.ok}, folder)
+    except Exception as exc:  # noqa: BLE001 - the evidence of a drawing bug is the event, the grade stands
+        return f"figures failed: {type(exc).__name__}: {exc}"
+    return f"{len(paths)} figures drawn in {folder}"

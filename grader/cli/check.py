@@ -12,7 +12,6 @@ import click
 from rubric import CHECK_CASES, CaseResult
 from rubric.check import OutputLocation, check_cases, evaluate
 
-from grader.figures import lab_figures
 from grader.report import write_check_report
 
 from .case import load_spec_file
@@ -44,6 +43,7 @@ def run_check(
 ):
     """Run the check's cases, write figures and reports into out_dir, return (CheckReport, results)."""
     from worker import run_cases
+    from worker.figures import lab_figures
 
     specs = {spec.name: spec for spec in check_cases(backend=backend, render=render)}
     for path in overrides:

@@ -131,7 +131,7 @@ def _rubric(grade: Grade):
 
 
 def figures_dir(submission: Submission) -> Path:
-    return Path(settings.artifacts_dir) / "submissions" / str(submission.id) / "figures"
+    return settings.figures_dir(submission.id)
 
 
 def report_view(submission: Submission, grade: Grade | None) -> ReportView:

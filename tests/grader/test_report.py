@@ -12,7 +12,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from grader import figures, report
+from grader import report
+from worker import figures
 from rubric import CaseResult, case_metrics, get_case
 from tests.factories import heavy_imports
 
@@ -152,5 +153,5 @@ def test_missing_figure_is_stated(tmp_path, measured):
     assert "figure missing: gone.png" in text
 
 
-def test_grader_figures_and_report_never_import_genesis_or_torch():
-    assert heavy_imports(["grader.figures", "grader.report"]) == []
+def test_figures_and_report_never_import_genesis_or_torch():
+    assert heavy_imports(["worker.figures", "grader.report"]) == []

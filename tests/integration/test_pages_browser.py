@@ -77,6 +77,13 @@ def test_a_student_signs_in_and_reads_her_report_item_by_item(browser, stack, gr
     page.locator("#provenance summary").first.click()
     provenance = page.locator("#provenance details").first.inner_text()
     assert "cpu / cpu" in provenance and "genesis 1.3.3" in provenance
+    # The figures the worker drew when it graded, served by the app with the session cookie.
+    images = page.locator("#figures img")
+    assert images.count() >= 5
+    names = [images.nth(i).get_attribute("alt") for i in range(images.count())]
+    assert "friction_compare_friction-baseline_vs_sheet.table_exercise.png" in names
+    page.wait_for_function("Array.from(document.querySelectorAll('#figures img'))"
+                           ".every(i => i.complete && i.naturalWidth > 0)")  # every PNG decoded, none broken
     download = page.request.get(f"{stack.url}/submissions/{submission}/results.json")  # with the session cookie
     assert download.ok and download.json()["total"] == grade["total"]
     assert [i["id"] for i in download.json()["items"]] == [i["id"] for i in grade["items"]]

@@ -130,5 +130,8 @@ def test_course_views_and_exports_respect_roles(stack, first):
                      headers=student).status_code == 403
     figures = httpx.get(f"{stack.url}/v1/submissions/{created['id']}/figures", headers=student, timeout=120)
     assert figures.status_code == 200 and figures.json()
+    # Drawn by the worker when it graded, under the service's run names: the student's own table exercise is
+    # compared with the baseline (no request draws anything).
+    assert "friction_compare_friction-baseline_vs_sheet.table_exercise.png" in figures.json()
     png = httpx.get(f"{stack.url}/v1/submissions/{created['id']}/figures/{figures.json()[0]}", headers=student)
     assert png.status_code == 200 and png.content[:4] == b"\x89PNG"

@@ -30,22 +30,16 @@ def case_run_file(submission: SubmissionDep, name: str, filename: str):
 
 
 def _figures_dir(submission) -> Path:
-    return Path(settings.artifacts_dir) / "submissions" / str(submission.id) / "figures"
+    return settings.figures_dir(submission.id)
 
 
-@router.get("/figures", response_model=list[str])
+@router.get("/figures", response_model=list[str], responses={409: {"description": "Not graded yet"}})
 def list_figures(submission: SubmissionDep) -> list[str]:
-    """Names of the lab figures drawn from this submission's measurements (drawn on first request)."""
+    """Names of the lab figures the worker drew from this submission's measurements when it graded it."""
+    if submission.status != "graded":
+        raise HTTPException(status.HTTP_409_CONFLICT, f"submission {submission.id} is {submission.status}")
     folder = _figures_dir(submission)
-    if not folder.is_dir():
-        if submission.status != "graded":
-            raise HTTPException(status.HTTP_409_CONFLICT, f"submission {submission.id} is {submission.status}")
-        from grader.figures import lab_figures
-        from grader.core.lifecycle import stored_result
-
-        results = {run.name: stored_result(run) for run in submission.case_runs if run.status == "done"}
-        lab_figures(results, folder)
-    return sorted(p.name for p in folder.glob("*.png"))
+    return sorted(p.name for p in folder.glob("*.png")) if folder.is_dir() else []
 
 
 @router.get("/figures/{filename}", response_class=FileResponse)

@@ -23,14 +23,17 @@ from .friction import friction_comparison_figure, friction_figure, stop_note
 
 
 def lab_figures(results: Mapping[str, CaseResult], out_dir: str | Path, *,
-                baseline: str = "friction-baseline", modified: str = "friction-table-0.30") -> list[Path]:
-    """Every L03 figure the results support: contact, per friction run, the one-factor comparison, frames."""
+                baseline: str = "friction-baseline") -> list[Path]:
+    """Every L03 figure the results support: contact, per friction run, frames, and the baseline compared with
+    every other friction run (the lab's table-0.30 run, a student's own table exercise, the colour-swapped control),
+    whatever each is named."""
     out_dir = Path(out_dir)
     paths = contact_figures(results, out_dir)
     friction = [r for r in results.values() if isinstance(r.spec, FrictionCase)]
     paths += [friction_figure(r, out_dir) for r in friction]
-    if baseline in results and modified in results:
-        paths.append(friction_comparison_figure(results[baseline], results[modified], out_dir))
+    if baseline in results:
+        paths += [friction_comparison_figure(results[baseline], r, out_dir)
+                  for r in friction if r.spec.name != baseline]
     paths += [frames_figure(r, out_dir) for r in results.values()]
     return paths
 

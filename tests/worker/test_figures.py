@@ -1,4 +1,4 @@
-"""grader.figures on real Genesis results: every figure is a valid, non-blank PNG in the output folder, says where
+"""worker.figures on real Genesis results: every figure is a valid, non-blank PNG in the output folder, says where
 its numbers came from, and takes the camera path only when the run rendered."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from grader import figures
+from worker import figures
 from rubric import CONTACT_CASES, CaseResult, case_metrics, get_case, with_backend
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -38,12 +38,15 @@ def test_lab_figures_cover_every_part_of_the_lab(lab_pngs, measured):
     expected = {
         "contact_trajectories.png",
         "contact_clearance.png",
-        "friction_compare_friction-baseline_vs_friction-table-0.30.png",
     } | {f"frames_{name}_schematic.png" for name in measured} | {
-        # Every friction run gets its lane figure, the colour-swapped control included.
-        f"friction_{name}.png" for name, result in measured.items() if result.spec.kind == "friction"}
+        # Every friction run gets its lane figure, the colour-swapped control included ...
+        f"friction_{name}.png" for name, result in measured.items() if result.spec.kind == "friction"} | {
+        # ... and every friction run other than the baseline is drawn against it.
+        f"friction_compare_friction-baseline_vs_{name}.png" for name, result in measured.items()
+        if result.spec.kind == "friction" and name != "friction-baseline"}
     assert {"friction_friction-baseline.png", "friction_friction-table-0.30.png",
-            "friction_friction-baseline-colors-swapped.png"} <= expected
+            "friction_compare_friction-baseline_vs_friction-table-0.30.png",
+            "friction_compare_friction-baseline_vs_friction-baseline-colors-swapped.png"} <= expected
     assert set(lab_pngs) == expected
 
 

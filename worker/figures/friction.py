@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rubric import CaseResult, FrictionCase
+from rubric import CaseResult, FrictionCase, field_changes
 from rubric.metrics import LaneMetrics
 from rubric.relations import stop_change
 
@@ -107,8 +107,10 @@ def friction_comparison_figure(baseline: CaseResult, modified: CaseResult, out_d
         for run, style in zip(runs, styles):
             _plot_compared_lane(axes[:, col], run, lane.name, style)
         _label_compared_lane(axes[:, col], runs, lane)
-    fig.suptitle(f"L03 Part B: one-factor comparison '{baseline.spec.name}' (wide pale) vs "
-                 f"'{modified.spec.name}' (dashed): only table friction changes", fontsize=13)
+    changed = ", ".join(c.field + (" (visual)" if c.visual else "")
+                        for c in field_changes(baseline.spec, modified.spec)) or "nothing"
+    fig.suptitle(f"L03 Part B: '{baseline.spec.name}' (wide pale) vs '{modified.spec.name}' (dashed); "
+                 f"changed: {changed}", fontsize=13)
     return finish(fig, [baseline, modified], path, source="measured trajectories", skipped=skipped)
 
 
