@@ -16,9 +16,10 @@ $(STAMP): pyproject.toml
 		|| (apt-get update && apt-get install -y --no-install-recommends chromium)
 	touch $(STAMP)
 
-# The embedded service (SQLite, filesystem broker, a local Celery worker): grades examples/l03/reference.yaml.
-# `make run RUN_FLAGS=` keeps serving at the printed URL until Ctrl-C.
-RUN_FLAGS ?= --exit-after-grading
+# The embedded service (SQLite, filesystem broker, a local Celery worker): grades examples/l03/reference.yaml,
+# prints the grade and the report page's URL, and keeps serving until Ctrl-C.
+# `make run RUN_FLAGS=--exit-after-grading` stops once graded (scripts, CI).
+RUN_FLAGS ?=
 run: $(STAMP)
 	$(VENV)/bin/grader run $(RUN_FLAGS)
 

@@ -108,6 +108,8 @@ def summary(client, submission_id: int, state: dict, url: str) -> Path:
     click.echo(f"GRADE {grade['total']:g} / {grade['max_total']:g} (rubric {grade['rubric_lesson']} "
                f"v{grade['rubric_version']})")
     click.echo(f"report: {folder}/grade.json and {url}/v1/submissions/{submission_id}/grade")
+    click.echo(f"report page: {url}/submissions/{submission_id} (sign in with the student token printed above)")
+    click.echo(f"class dashboard: {url}/courses/demo/dashboard (sign in with the instructor token)")
     return folder
 
 
