@@ -68,6 +68,16 @@ class ReportView:
     first_run_note: bool = False
 
     @property
+    def plots(self) -> list[str]:
+        """Measured-trajectory figures (contact, friction lanes, comparisons), shown open."""
+        return [f for f in self.figures if not f.startswith("frames_")]
+
+    @property
+    def frames(self) -> list[str]:
+        """Initial and final frames, or schematics drawn from measured positions, one per case."""
+        return [f for f in self.figures if f.startswith("frames_")]
+
+    @property
     def config_faults(self) -> list[str]:
         """The findings that broke the one-factor rule (rubric.one_factor's wording for a violation)."""
         return [f for f in self.config_findings if "too many inputs changed" in f]
