@@ -40,10 +40,11 @@ def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
         touch(submission, "failed", submission.error, session=session)
         session.commit()
         return None
+    execution_s = time.perf_counter() - started  # grading itself; drawing the figures is not part of it
     figures_note = draw_figures(submission.id, results)
     grade = Grade(submission_id=submission.id, rubric_lesson=book.lesson, rubric_version=str(book.version),
                   rubric_hash=book.content_hash, total=report.total, max_total=report.max_total,
-                  report=report.model_dump(mode="json"), execution_s=time.perf_counter() - started)
+                  report=report.model_dump(mode="json"), execution_s=execution_s)
     session.add(grade)
     submission.graded_at = utcnow()
     session.add(Event(submission_id=submission.id, state="figures", detail=figures_note))
@@ -59,14 +60,14 @@ def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
 def draw_figures(submission_id: int, results: dict) -> str:
     """The lab figures of a submission's results, drawn before its grade is stored so a graded submission has them.
 
-    A drawing failure never blocks or changes the grade: it is recorded (the returned note becomes an event) and
-    the pages show the submission without figures.
+    Failed case runs are passed too, so each figure names what it could not draw. A drawing failure never blocks
+    or changes the grade: it is recorded (the returned note becomes an event) and the pages show no figures.
     """
     from worker.figures import lab_figures
 
     folder = settings.figures_dir(submission_id)
     try:
-        paths = lab_figures({name: r for name, r in results.items() if r.ok}, folder)
+        paths = lab_figures(results, folder)
     except Exception as exc:  # noqa: BLE001 - the evidence of a drawing bug is the event, the grade stands
         return f"figures failed: {type(exc).__name__}: {exc}"
     return f"{len(paths)} figures drawn in {folder}"

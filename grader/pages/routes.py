@@ -19,7 +19,8 @@ from grader.api.deps import SessionDep
 from grader.api.routes.files import EVIDENCE
 from grader.models import Course, Grade, Submission
 from grader.pages.auth import PageUser, clear_session_cookie, set_session_cookie
-from grader.pages.views import figures_dir, report_view
+from grader.pages.views import report_view
+from grader.settings import settings
 
 TEMPLATES = Jinja2Templates(directory=str(Path(__file__).resolve().parent.parent / "templates"))
 PART_TITLES = {
@@ -127,7 +128,7 @@ def figure_file(request: Request, submission_id: int, filename: str, session: Se
     if user is None:
         return Response(status_code=status.HTTP_401_UNAUTHORIZED)
     submission = _readable(session, user, submission_id)
-    path = figures_dir(submission) / filename if submission is not None else None
+    path = settings.figures_dir(submission.id) / filename if submission is not None else None
     if path is None or "/" in filename or not filename.endswith(".png") or not path.is_file():
         return _not_found(request, user, f"figure {filename}")
     return FileResponse(path, media_type="image/png")

@@ -140,10 +140,6 @@ def _rubric(grade: Grade):
         return None
 
 
-def figures_dir(submission: Submission) -> Path:
-    return settings.figures_dir(submission.id)
-
-
 def report_view(submission: Submission, grade: Grade | None) -> ReportView:
     now = utcnow()
     runs = [RunRow(name=r.name, kind=r.kind, status=r.status, result_status=r.result_status, backend=r.backend,
@@ -152,7 +148,7 @@ def report_view(submission: Submission, grade: Grade | None) -> ReportView:
             for r in submission.case_runs]
     view = ReportView(submission=submission, runs=runs, grade=grade)
     view.first_run_note = any(r.status == "running" and (r.elapsed_s or 0) > FIRST_RUN_NOTE_AFTER_S for r in runs)
-    folder = figures_dir(submission)
+    folder = settings.figures_dir(submission.id)
     view.figures = sorted(p.name for p in folder.glob("*.png")) if folder.is_dir() else []
     if grade is None:
         return view

@@ -29,23 +29,19 @@ def case_run_file(submission: SubmissionDep, name: str, filename: str):
     return FileResponse(path, media_type=EVIDENCE[filename], filename=f"{submission.id}-{name}-{filename}")
 
 
-def _figures_dir(submission) -> Path:
-    return settings.figures_dir(submission.id)
-
-
 @router.get("/figures", response_model=list[str], responses={409: {"description": "Not graded yet"}})
 def list_figures(submission: SubmissionDep) -> list[str]:
     """Names of the lab figures the worker drew from this submission's measurements when it graded it."""
     if submission.status != "graded":
         raise HTTPException(status.HTTP_409_CONFLICT, f"submission {submission.id} is {submission.status}")
-    folder = _figures_dir(submission)
+    folder = settings.figures_dir(submission.id)
     return sorted(p.name for p in folder.glob("*.png")) if folder.is_dir() else []
 
 
 @router.get("/figures/{filename}", response_class=FileResponse)
 def figure(submission: SubmissionDep, filename: str):
     """One lab figure (PNG)."""
-    path = _figures_dir(submission) / filename
+    path = settings.figures_dir(submission.id) / filename
     if "/" in filename or not filename.endswith(".png") or not path.is_file():
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"no figure {filename!r}; list them at ../figures")
     return FileResponse(path, media_type="image/png")
