@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -9,7 +10,8 @@ from pathlib import Path
 import pytest
 
 from tests import services
-from tests.factories import create_people
+from tests.factories import create_people, reference_sheet
+from tests.integration.helpers import CHROMIUM, SHOTS, submit_and_wait
 
 
 @dataclass
@@ -58,3 +60,30 @@ def stack(tmp_path_factory):
             services.stop(api)
             engine.dispose()
             redis.flushdb()
+
+
+@pytest.fixture(scope="session")
+def browser():
+    """Debian's chromium driven by Playwright (its own browser download is unreachable from these machines)."""
+    from playwright.sync_api import sync_playwright
+
+    if not CHROMIUM.exists():
+        pytest.fail(f"{CHROMIUM} is missing: `make .venv/.installed` installs Debian's chromium")
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=str(CHROMIUM), headless=True, args=["--no-sandbox"])
+        yield browser
+        browser.close()
+
+
+@pytest.fixture(scope="session")
+def graded(stack):
+    """A small class graded for real, shared by the browser tests: Alice's reference sheet twice, Bob's with one
+    wrong prediction (H3: the high lane goes farther)."""
+    _, first = submit_and_wait(stack, reference_sheet(), who="alice")
+    wrong = copy.deepcopy(reference_sheet()) | {"student": "bob"}
+    wrong["answers"]["H3"]["high"] = "farther"
+    _, bob = submit_and_wait(stack, wrong, who="bob")
+    _, alice = submit_and_wait(stack, reference_sheet(), who="alice")
+    assert first["status"] == alice["status"] == bob["status"] == "graded", (first, alice, bob)
+    return {"alice": alice, "bob": bob, "alice_first": first}

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import os
 import time
+from pathlib import Path
 
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from grader.models import CaseRun, Event, Grade
+from tests.factories import ROOT
 
 # Safety stop only (a cold kernel cache can take minutes); no test asserts how long anything took.
 WAIT_LIMIT_S = 900
@@ -43,3 +46,17 @@ def case_runs(stack, submission_id: int) -> list[CaseRun]:
 def events(stack, submission_id: int) -> list[Event]:
     with Session(stack.engine) as session:
         return session.scalars(select(Event).where(Event.submission_id == submission_id).order_by(Event.id)).all()
+
+
+CHROMIUM = Path("/usr/bin/chromium")
+SHOTS = Path(os.environ.get("SCREENSHOTS_DIR", ROOT / "out" / "screenshots"))
+
+
+def signed_in(browser, stack, who: str, *, width: int = 1280):
+    """A new browser page signed in through the sign-in form with `who`'s token."""
+    page = browser.new_page(viewport={"width": width, "height": 900})
+    page.goto(f"{stack.url}/submissions")
+    assert page.url.startswith(f"{stack.url}/sign-in")
+    page.fill("#token", stack.tokens[who])
+    page.click("button[type=submit]")
+    return page

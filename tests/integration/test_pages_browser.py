@@ -4,59 +4,17 @@ $SCREENSHOTS_DIR) as test artifacts."""
 
 from __future__ import annotations
 
-import copy
-import os
-from pathlib import Path
-
 import pytest
 
-from tests.integration.helpers import submit_and_wait
-from tests.factories import ROOT, reference_sheet
+from tests.integration.helpers import SHOTS, signed_in
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
-CHROMIUM = Path("/usr/bin/chromium")
-SHOTS = Path(os.environ.get("SCREENSHOTS_DIR", ROOT / "out" / "screenshots"))
-
-
-@pytest.fixture(scope="module")
-def browser():
-    from playwright.sync_api import sync_playwright
-
-    if not CHROMIUM.exists():
-        pytest.fail(f"{CHROMIUM} is missing: `make .venv/.installed` installs Debian's chromium")
-    SHOTS.mkdir(parents=True, exist_ok=True)
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), headless=True, args=["--no-sandbox"])
-        yield browser
-        browser.close()
-
-
-@pytest.fixture(scope="module")
-def graded(stack):
-    """Three graded submissions: Alice's reference sheet twice, Bob's with one wrong prediction (H3: the high lane
-    goes farther)."""
-    _, first = submit_and_wait(stack, reference_sheet(), who="alice")
-    wrong = copy.deepcopy(reference_sheet()) | {"student": "bob"}
-    wrong["answers"]["H3"]["high"] = "farther"
-    _, bob = submit_and_wait(stack, wrong, who="bob")
-    _, alice = submit_and_wait(stack, reference_sheet(), who="alice")
-    assert first["status"] == alice["status"] == bob["status"] == "graded", (first, alice, bob)
-    return {"alice": alice, "bob": bob, "alice_first": first}
-
-
-def _signed_in(browser, stack, who: str, *, width: int = 1280):
-    page = browser.new_page(viewport={"width": width, "height": 900})
-    page.goto(f"{stack.url}/submissions")
-    assert page.url.startswith(f"{stack.url}/sign-in")
-    page.fill("#token", stack.tokens[who])
-    page.click("button[type=submit]")
-    return page
 
 
 def test_a_student_signs_in_and_reads_her_report_item_by_item(browser, stack, graded):
     submission = graded["alice"]["id"]
     grade = stack.client("alice").grade(submission)
-    page = _signed_in(browser, stack, "alice")
+    page = signed_in(browser, stack, "alice")
     page.click(f"a[href='/submissions/{submission}']")
     page.wait_for_selector("#items")
     assert page.inner_text("#total").split() == [f"{grade['total']:g}", "/", f"{grade['max_total']:g}", "points"]
@@ -92,7 +50,7 @@ def test_a_student_signs_in_and_reads_her_report_item_by_item(browser, stack, gr
 
 def test_a_lost_item_shows_what_the_measurement_showed_instead(browser, stack, graded):
     submission = graded["bob"]["id"]
-    page = _signed_in(browser, stack, "bob")
+    page = signed_in(browser, stack, "bob")
     page.goto(f"{stack.url}/submissions/{submission}")
     h3 = page.locator("#item-H3")
     assert "lost" in h3.get_attribute("class")
@@ -101,14 +59,14 @@ def test_a_lost_item_shows_what_the_measurement_showed_instead(browser, stack, g
     assert "high: farther" in text and "delta" in text and "sheet.table_exercise on cpu" in text
     page.locator("#item-H3").scroll_into_view_if_needed()
     page.screenshot(path=SHOTS / "student_report_lost_item.png", full_page=False)
-    phone = _signed_in(browser, stack, "bob", width=390)
+    phone = signed_in(browser, stack, "bob", width=390)
     phone.goto(f"{stack.url}/submissions/{submission}")
     assert phone.evaluate("document.documentElement.scrollWidth") <= 390 + 1, "the report scrolls sideways on a phone"
     phone.screenshot(path=SHOTS / "student_report_phone.png", full_page=False)
 
 
 def test_another_students_report_is_not_found_and_reveals_nothing(browser, stack, graded):
-    page = _signed_in(browser, stack, "alice")
+    page = signed_in(browser, stack, "alice")
     response = page.goto(f"{stack.url}/submissions/{graded['bob']['id']}")
     assert response.status == 404
     assert "bob" not in page.inner_text("main") and "H3" not in page.content()
@@ -117,7 +75,7 @@ def test_another_students_report_is_not_found_and_reveals_nothing(browser, stack
 
 def test_the_instructor_dashboard_shows_the_item_analysis_of_the_json(browser, stack, graded):
     data = stack.client("prof").dashboard("l03-test")
-    page = _signed_in(browser, stack, "prof")
+    page = signed_in(browser, stack, "prof")
     page.click("text=Class dashboard")
     page.wait_for_selector("#item-analysis")
     # Each student's latest graded attempt counts: whatever else the session graded, Bob's H3 is a wrong answer.
@@ -136,5 +94,5 @@ def test_the_instructor_dashboard_shows_the_item_analysis_of_the_json(browser, s
     assert roster["alice"]["submission_id"] == graded["alice"]["id"] and roster["alice"]["attempts"] >= 2
     assert page.locator("#roster").inner_text().count("alice") == 1
     page.screenshot(path=SHOTS / "instructor_dashboard.png", full_page=True)
-    student = _signed_in(browser, stack, "alice")
+    student = signed_in(browser, stack, "alice")
     assert student.goto(f"{stack.url}/courses/l03-test/dashboard").status == 404
