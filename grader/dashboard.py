@@ -66,7 +66,8 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
     submissions = session.scalars(select(Submission).where(Submission.course_id == course.id)
                                   .order_by(Submission.id)).all()
     grades = {g.submission_id: g for g in session.scalars(
-        select(Grade).join(Submission, Grade.submission_id == Submission.id).where(Submission.course_id == course.id))}
+        select(Grade).join(Submission, Grade.submission_id == Submission.id)
+        .where(Submission.course_id == course.id, Grade.superseded_at.is_(None)))}
     latest: dict[int, Submission] = {}
     attempts: Counter[int] = Counter()
     for s in submissions:

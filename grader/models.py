@@ -1,4 +1,5 @@
-"""Database tables (SQLAlchemy 2): courses, users and tokens, submissions, case runs, measurements, grades, events.
+"""Database tables (SQLAlchemy 2): courses, users and tokens, submissions, case runs, measurements, rubric versions,
+grades with their history, regrades, events.
 
 All timestamps are naive UTC. Every state change of a submission or case run also appends an Event row.
 """
@@ -8,7 +9,7 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Any
 
-from sqlalchemy import JSON, Boolean, DateTime, Float, ForeignKey, Integer, String, Text, UniqueConstraint
+from sqlalchemy import JSON, Boolean, DateTime, Float, ForeignKey, Index, Integer, String, Text, UniqueConstraint, text
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 ROLES = ("student", "instructor", "auditor")
@@ -134,13 +135,55 @@ class Measurement(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
 
 
-class Grade(Base):
-    """One per submission (unique): a second grading attempt fails on the constraint instead of grading twice."""
+class RubricVersion(Base):
+    """A rubric version known to the service: shipped with it (rubric/lessons, no publisher) or published by an
+    instructor. Its content is stored whole, so a grade's version stays readable whatever the files say later."""
 
-    __tablename__ = "grades"
+    __tablename__ = "rubric_versions"
+    __table_args__ = (UniqueConstraint("lesson", "version"),)
 
     id: Mapped[int] = mapped_column(primary_key=True)
-    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), unique=True)
+    lesson: Mapped[str] = mapped_column(String(16))
+    version: Mapped[str] = mapped_column(String(32))
+    content_hash: Mapped[str] = mapped_column(String(64))
+    content: Mapped[dict[str, Any]]
+    source: Mapped[str] = mapped_column(String(16))  # "shipped" or "published"
+    published_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))
+    published_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+    published_by: Mapped[User | None] = relationship(lazy="joined")
+
+
+class Regrade(Base):
+    """A committed regrade of one course's lesson under a new rubric version: who committed it, when, what changed."""
+
+    __tablename__ = "regrades"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    course_id: Mapped[int] = mapped_column(ForeignKey("courses.id"), index=True)
+    lesson: Mapped[str] = mapped_column(String(16))
+    version: Mapped[str] = mapped_column(String(32))
+    committed_by_id: Mapped[int] = mapped_column(ForeignKey("users.id"))
+    committed_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    regraded: Mapped[int] = mapped_column(Integer)
+    changed: Mapped[int] = mapped_column(Integer)
+    # Submissions left on their old grade, with the reason (e.g. a case the new version needs was never measured).
+    skipped: Mapped[list[Any]]
+
+    committed_by: Mapped[User] = relationship(lazy="joined")
+
+
+class Grade(Base):
+    """A submission's grade under one rubric version. The current one has superseded_at NULL; a regrade adds a new
+    row and marks the old one superseded, never deleting it. At most one current grade per submission (a partial
+    unique index): a second grading attempt fails on it instead of grading twice."""
+
+    __tablename__ = "grades"
+    __table_args__ = (Index("uq_grades_current", "submission_id", unique=True,
+                            postgresql_where=text("superseded_at IS NULL"), sqlite_where=text("superseded_at IS NULL")),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), index=True)
     rubric_lesson: Mapped[str] = mapped_column(String(16))
     rubric_version: Mapped[str] = mapped_column(String(32))
     rubric_hash: Mapped[str] = mapped_column(String(64))
@@ -149,6 +192,10 @@ class Grade(Base):
     report: Mapped[dict[str, Any]]
     execution_s: Mapped[float] = mapped_column(Float, default=0.0)
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    superseded_at: Mapped[datetime | None] = mapped_column(DateTime)
+    regrade_id: Mapped[int | None] = mapped_column(ForeignKey("regrades.id"))
+
+    regrade: Mapped[Regrade | None] = relationship(lazy="joined")
 
 
 class Event(Base):

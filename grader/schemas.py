@@ -111,6 +111,22 @@ class GradePublic(BaseModel):
     rubric_hash: str
     items: list[GradeItemPublic]
     created_at: datetime
+    superseded_at: datetime | None = None  # set once a committed regrade replaced this grade
+    regrade_id: int | None = None  # the regrade that wrote this grade; None for the first grading
+
+
+class GradeHistoryEntry(BaseModel):
+    """One grade a submission had: which rubric version, the total, when, and whether a regrade replaced it."""
+
+    rubric_version: str
+    rubric_hash: str
+    total: float
+    max_total: float
+    created_at: datetime
+    superseded_at: datetime | None
+    regrade_id: int | None
+    regraded_by: str | None
+    current: bool
 
 
 class EventPublic(BaseModel):

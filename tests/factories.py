@@ -95,3 +95,20 @@ def write_case_folder(out: Path, arrays: dict, provenance: dict) -> None:
     """What a case process leaves behind on success: arrays.npz and provenance.json."""
     np.savez(out / "arrays.npz", **arrays)
     (out / "provenance.json").write_text(json.dumps(provenance))
+
+
+def rubric_v3(**tolerance_values: float) -> dict:
+    """L03 v2's content published as v3 with its own review record and the given tolerances re-reviewed at new
+    values (a regrade test's new version; nothing here is shipped in rubric/lessons)."""
+    import datetime as dt
+
+    from rubric.rubrics import load_rubric
+
+    content = load_rubric("L03", "2").model_dump(mode="json")
+    today = dt.date(2026, 11, 24).isoformat()
+    content["version"] = "3"
+    content["review"] = {"reviewer": "regrade test instructor", "review_date": today,
+                         "notes": "tightened for the regrade tests"}
+    for name, value in tolerance_values.items():
+        content["tolerances"][name] |= {"value": value, "reviewer": "regrade test instructor", "review_date": today}
+    return content

@@ -13,6 +13,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from grader.core.lifecycle import stored_result, touch
+from grader.core.rubrics import course_rubric, current_grade
 from grader.models import Event, Grade, Submission, utcnow
 from grader.settings import settings
 
@@ -24,7 +25,7 @@ def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
     submission = session.get(Submission, submission_id)
     if submission is None or submission.status != "grading":
         return None
-    existing = session.scalar(select(Grade).where(Grade.submission_id == submission_id))
+    existing = current_grade(session, submission_id)
     if existing is not None:  # graded before a crash could record the state change
         touch(submission, "graded", "grade already stored", session=session)
         session.commit()
@@ -33,7 +34,7 @@ def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
     try:
         sheet = rubric.parse_sheet(submission.sheet)
         results = {run.name: stored_result(run) for run in submission.case_runs}
-        book = rubric.load_rubric(lesson=submission.lesson)
+        book = course_rubric(session, submission.course_id, submission.lesson)
         report = rubric.grade_sheet(sheet, results, book)
     except Exception as exc:  # a grading bug must be visible on the submission, not a stuck 'grading'
         submission.error = f"grading failed: {type(exc).__name__}: {exc}"

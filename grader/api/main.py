@@ -2,7 +2,7 @@
 
 from fastapi import APIRouter
 
-from grader.api.routes import courses, exports, files, health, submissions
+from grader.api.routes import courses, exports, files, health, rubrics, submissions
 
 api_router = APIRouter(prefix="/v1")
 api_router.include_router(health.router)
@@ -10,3 +10,4 @@ api_router.include_router(submissions.router)
 api_router.include_router(files.router)
 api_router.include_router(courses.router)
 api_router.include_router(exports.router)
+api_router.include_router(rubrics.router)

@@ -7,8 +7,9 @@ from collections import Counter
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from grader.core.rubrics import current_grade
 from grader.models import Grade, Submission
-from grader.schemas import GradePublic, Progress, SubmissionPublic
+from grader.schemas import GradeHistoryEntry, GradePublic, Progress, SubmissionPublic
 
 
 def progress(submission: Submission) -> Progress:
@@ -17,7 +18,7 @@ def progress(submission: Submission) -> Progress:
 
 
 def submission_public(submission: Submission, session: Session) -> SubmissionPublic:
-    grade = session.scalar(select(Grade).where(Grade.submission_id == submission.id))
+    grade = current_grade(session, submission.id)
     return SubmissionPublic(
         id=submission.id, lesson=submission.lesson, student=submission.student.name, status=submission.status,
         force_rerun=submission.force_rerun, error=submission.error, progress=progress(submission),
@@ -30,5 +31,14 @@ def grade_public(grade: Grade) -> GradePublic:
     return GradePublic(
         submission_id=grade.submission_id, total=grade.total, max_total=grade.max_total,
         rubric_lesson=grade.rubric_lesson, rubric_version=grade.rubric_version, rubric_hash=grade.rubric_hash,
-        items=grade.report.get("items", []), created_at=grade.created_at,
+        items=grade.report.get("items", []), created_at=grade.created_at, superseded_at=grade.superseded_at,
+        regrade_id=grade.regrade_id,
     )
+
+
+def grade_history_public(grades: list[Grade]) -> list[GradeHistoryEntry]:
+    return [GradeHistoryEntry(rubric_version=g.rubric_version, rubric_hash=g.rubric_hash, total=g.total,
+                              max_total=g.max_total, created_at=g.created_at, superseded_at=g.superseded_at,
+                              regrade_id=g.regrade_id, regraded_by=g.regrade.committed_by.name if g.regrade else None,
+                              current=g.superseded_at is None)
+            for g in grades]

@@ -17,6 +17,7 @@ from sqlalchemy import select
 from grader import crud
 from grader.api.deps import SessionDep
 from grader.api.routes.files import EVIDENCE
+from grader.core.rubrics import current_grade
 from grader.models import Course, Grade, Submission
 from grader.pages.auth import PageUser, clear_session_cookie, set_session_cookie
 from grader.pages.views import report_view
@@ -90,7 +91,7 @@ def submissions_page(request: Request, session: SessionDep, user: PageUser):
         return _sign_in_redirect(request)
     rows = crud.visible_submissions(session=session, user=user)
     grades = {g.submission_id: g for g in session.scalars(
-        select(Grade).where(Grade.submission_id.in_([s.id for s in rows])))} if rows else {}
+        select(Grade).where(Grade.submission_id.in_([s.id for s in rows]), Grade.superseded_at.is_(None)))} if rows else {}
     return TEMPLATES.TemplateResponse(request, "submissions.html",
                                       {"user": user, "submissions": rows[::-1], "grades": grades})
 
@@ -102,7 +103,7 @@ def report_page(request: Request, submission_id: int, session: SessionDep, user:
     submission = _readable(session, user, submission_id)
     if submission is None:
         return _not_found(request, user, f"submission {submission_id}")
-    grade = session.scalar(select(Grade).where(Grade.submission_id == submission.id))
+    grade = current_grade(session, submission.id)
     view = report_view(submission, grade)
     return TEMPLATES.TemplateResponse(request, "report.html",
                                       {"user": user, "view": view, "part_titles": PART_TITLES})
@@ -114,7 +115,7 @@ def results_download(request: Request, submission_id: int, session: SessionDep, 
     if user is None:
         return _sign_in_redirect(request)
     submission = _readable(session, user, submission_id)
-    grade = session.scalar(select(Grade).where(Grade.submission_id == submission.id)) if submission else None
+    grade = current_grade(session, submission.id) if submission else None
     if grade is None:
         return _not_found(request, user, f"grade of submission {submission_id}")
     from fastapi.responses import JSONResponse

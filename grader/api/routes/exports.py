@@ -8,6 +8,7 @@ from sqlalchemy import select
 
 from grader.api.deps import CurrentUser, SessionDep, SubmissionDep
 from grader.api.responses import AUTH, FORBIDDEN, NOT_FOUND
+from grader.core.rubrics import current_grade
 from grader.models import Course, Grade, Submission
 
 router = APIRouter(tags=["exports"], responses={**AUTH, **FORBIDDEN, **NOT_FOUND})
@@ -34,7 +35,7 @@ def course_grades_csv(course: str, session: SessionDep, user: CurrentUser):
     from rubric.exports import grades_csv
 
     graded = session.execute(select(Submission, Grade).join(Grade, Grade.submission_id == Submission.id)
-                             .where(Submission.course_id == row.id).order_by(Submission.id)).all()
+                             .where(Submission.course_id == row.id, Grade.superseded_at.is_(None)).order_by(Submission.id)).all()
     return PlainTextResponse(grades_csv([(s.student.name, _report(g)) for s, g in graded]), media_type="text/csv")
 
 
@@ -42,7 +43,7 @@ def course_grades_csv(course: str, session: SessionDep, user: CurrentUser):
 def gradescope(submission: SubmissionDep, session: SessionDep, user: CurrentUser) -> dict:
     """Gradescope results.json for one graded submission."""
     _instructor(user)
-    grade = session.scalar(select(Grade).where(Grade.submission_id == submission.id))
+    grade = current_grade(session, submission.id)
     if grade is None:
         raise HTTPException(status.HTTP_409_CONFLICT, f"submission {submission.id} is {submission.status}, not graded")
     from rubric.exports import gradescope_results

@@ -13,9 +13,10 @@ from grader import crud, dispatch, sheets
 from grader.api.deps import CurrentUser, SessionDep, SubmissionDep
 from grader.api.errors import error, field_errors
 from grader.api.responses import AUTH, FORBIDDEN, INVALID, NOT_FOUND
-from grader.api.views import grade_public, submission_public
-from grader.models import Event, Grade
-from grader.schemas import CaseRunPublic, EventPublic, GradePublic, SubmissionCreate, SubmissionPublic
+from grader.api.views import grade_history_public, grade_public, submission_public
+from grader.core.rubrics import current_grade, grade_history
+from grader.models import Event
+from grader.schemas import CaseRunPublic, EventPublic, GradeHistoryEntry, GradePublic, SubmissionCreate, SubmissionPublic
 
 log = logging.getLogger(__name__)
 router = APIRouter(prefix="/submissions", tags=["submissions"], responses=AUTH)
@@ -78,11 +79,17 @@ def get_submission(submission: SubmissionDep, session: SessionDep):
             responses={**NOT_FOUND, 409: {"description": "Not graded yet; the body says the current status"}})
 def get_grade(submission: SubmissionDep, session: SessionDep):
     """The grade with per-item score, feedback and measured evidence."""
-    grade = session.scalar(select(Grade).where(Grade.submission_id == submission.id))
+    grade = current_grade(session, submission.id)
     if grade is None:
         detail = f"submission {submission.id} is {submission.status}, not graded"
         raise HTTPException(status.HTTP_409_CONFLICT, detail + (f": {submission.error}" if submission.error else ""))
     return grade_public(grade)
+
+
+@router.get("/{submission_id}/grades", response_model=list[GradeHistoryEntry], responses=NOT_FOUND)
+def list_grades(submission: SubmissionDep, session: SessionDep):
+    """Every grade the submission has had, oldest first: the first grading, then one per committed regrade."""
+    return grade_history_public(grade_history(session, submission.id))
 
 
 @router.get("/{submission_id}/case-runs", response_model=list[CaseRunPublic], responses=NOT_FOUND)

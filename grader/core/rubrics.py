@@ -1,0 +1,118 @@
+"""Rubric versions as rows, and which grade and which version count: shared by the API and the worker.
+
+Every version the service knows is a `RubricVersion` row holding its whole content: the files shipped in
+rubric/lessons are recorded as "shipped" (no publisher), and an instructor publishes new ones through the API
+(`publish`, under rubric.governance's rules). A course grades new submissions under the version its latest committed
+regrade chose, else under the newest shipped version. A submission's current grade is the one not superseded.
+"""
+
+from __future__ import annotations
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from grader.models import Grade, Regrade, RubricVersion, User, utcnow
+
+
+def current_grade(session: Session, submission_id: int) -> Grade | None:
+    """The submission's grade that counts (the newest not superseded by a regrade), or None."""
+    return session.scalar(select(Grade).where(Grade.submission_id == submission_id, Grade.superseded_at.is_(None)))
+
+
+def grade_history(session: Session, submission_id: int) -> list[Grade]:
+    """Every grade a submission ever had, oldest first; the last one is the current one."""
+    return list(session.scalars(select(Grade).where(Grade.submission_id == submission_id).order_by(Grade.id)))
+
+
+def _row_rubric(row: RubricVersion):
+    from rubric.rubrics import parse_rubric
+
+    rubric = parse_rubric(row.content)
+    if rubric.content_hash != row.content_hash:  # stored content is never edited; a mismatch is corruption
+        raise ValueError(f"rubric {row.lesson} v{row.version}: stored content does not match its hash "
+                         f"{row.content_hash[:12]}")
+    return rubric
+
+
+def sync_shipped(session: Session, lesson: str) -> list[RubricVersion]:
+    """Record every shipped file version of `lesson` not yet known (flushes); returns the lesson's rows, oldest first.
+
+    A shipped file whose content differs from its recorded row is refused by governance when any grade used that
+    version (a used version is immutable) and otherwise replaces the row.
+    """
+    from rubric.governance import publish_version
+    from rubric.rubrics import load_rubric, rubric_versions, version_key
+
+    rows = {r.version: r for r in session.scalars(select(RubricVersion).where(RubricVersion.lesson == lesson))}
+    for version in rubric_versions(lesson):
+        shipped = load_rubric(lesson, version)
+        row = rows.get(version)
+        if row is not None and row.content_hash == shipped.content_hash:
+            continue
+        if row is not None:
+            publish_version(shipped, [_row_rubric(r) for r in rows.values()], used_versions(session, lesson))
+            row.content, row.content_hash = shipped.model_dump(mode="json"), shipped.content_hash
+            continue
+        rows[version] = RubricVersion(lesson=lesson, version=version, content_hash=shipped.content_hash,
+                                      content=shipped.model_dump(mode="json"), source="shipped")
+        session.add(rows[version])
+    session.flush()
+    return sorted(rows.values(), key=lambda r: version_key(r.version))
+
+
+def used_versions(session: Session, lesson: str) -> set[str]:
+    return set(session.scalars(select(Grade.rubric_version).where(Grade.rubric_lesson == lesson).distinct()))
+
+
+def get_version(session: Session, lesson: str, version: str):
+    """The stored Rubric of `lesson` at `version`; LookupError naming the known versions if there is none."""
+    rows = sync_shipped(session, lesson)
+    row = next((r for r in rows if r.version == version), None)
+    if row is None:
+        known = ", ".join(r.version for r in rows) or "none"
+        raise LookupError(f"lesson {lesson} has no rubric version {version!r}; known: {known}")
+    return _row_rubric(row)
+
+
+def publish(session: Session, *, content: dict, user: User) -> RubricVersion:
+    """Record a new rubric version published by `user` (flushes). Raises pydantic's ValidationError for a malformed
+    rubric and rubric.governance.RubricGovernanceError for one governance refuses (a used version changed, a
+    changed tolerance without a new review). Republishing identical content returns the existing row."""
+    from rubric.governance import publish_version
+    from rubric.rubrics import parse_rubric
+
+    new = parse_rubric(content)
+    rows = sync_shipped(session, new.lesson)
+    accepted = publish_version(new, [_row_rubric(r) for r in rows], used_versions(session, new.lesson))
+    prior = next((r for r in rows if r.version == new.version), None)
+    if prior is not None and accepted.content_hash == prior.content_hash:
+        return prior
+    if prior is not None:  # an unused draft replaced: same id, new content, new publisher
+        prior.content, prior.content_hash = new.model_dump(mode="json"), new.content_hash
+        prior.source, prior.published_by_id, prior.published_at = "published", user.id, utcnow()
+        session.flush()
+        return prior
+    row = RubricVersion(lesson=new.lesson, version=new.version, content_hash=new.content_hash,
+                        content=new.model_dump(mode="json"), source="published", published_by_id=user.id)
+    session.add(row)
+    session.flush()
+    return row
+
+
+def course_version(session: Session, course_id: int, lesson: str) -> str:
+    """The rubric version a course grades `lesson` under: its latest committed regrade's, else the newest shipped."""
+    from rubric.rubrics import rubric_versions
+
+    committed = session.scalar(select(Regrade.version).where(Regrade.course_id == course_id, Regrade.lesson == lesson)
+                               .order_by(Regrade.id.desc()).limit(1))
+    if committed is not None:
+        return committed
+    shipped = rubric_versions(lesson)
+    if not shipped:
+        raise LookupError(f"no rubric files for lesson {lesson!r}")
+    return shipped[-1]
+
+
+def course_rubric(session: Session, course_id: int, lesson: str):
+    """The Rubric new submissions of this course's lesson are graded under."""
+    return get_version(session, lesson, course_version(session, course_id, lesson))

@@ -1,0 +1,188 @@
+"""Regrade a course's lesson under another rubric version: preview per student (nothing written), then commit.
+
+The regrade reads the measurements already stored with each submission's case runs, never runs a case: which
+cases a sheet needs is decided by the lesson and the sheet's configs (rubric.cases_to_run), and a submission whose
+new version needs a case it never measured is left on its grade with that reason. Committing supersedes each
+current grade with a new one under the new version and keeps the old (grader.core.rubrics.grade_history), and the
+course grades its new submissions under that version from then on. Both are recorded with who and when.
+"""
+
+from __future__ import annotations
+
+import time
+from datetime import datetime
+
+from pydantic import BaseModel
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from grader.core.lifecycle import stored_result
+from grader.core.rubrics import course_version, get_version
+from grader.models import Course, Grade, Regrade, Submission, User, utcnow
+
+
+class ItemDiff(BaseModel):
+    id: str
+    old_score: float | None
+    new_score: float | None
+    old_verdict: str | None
+    new_verdict: str | None
+    why: str  # the rubric change behind it, and what the new version's check says
+
+
+class RegradeEntry(BaseModel):
+    submission_id: int
+    student: str
+    old_version: str
+    new_version: str
+    old_total: float
+    new_total: float | None
+    max_total: float | None
+    changed_items: list[ItemDiff]
+    skipped: str | None = None  # why this submission stays on its old grade
+
+    @property
+    def delta(self) -> float | None:
+        return None if self.new_total is None else self.new_total - self.old_total
+
+
+class RegradePreview(BaseModel):
+    course: str
+    lesson: str
+    current_version: str
+    new_version: str
+    rubric_changes: dict[str, list[str]]  # per old version: what differs in the new one
+    entries: list[RegradeEntry]
+    elapsed_s: float
+
+    @property
+    def changed(self) -> list[RegradeEntry]:
+        return [e for e in self.entries if e.skipped is None and (e.changed_items or e.delta)]
+
+
+class RegradeRecord(BaseModel):
+    id: int
+    course: str
+    lesson: str
+    version: str
+    committed_by: str
+    committed_at: datetime
+    regraded: int
+    changed: int
+    skipped: list[dict]
+
+
+def record(row: Regrade, course: Course) -> RegradeRecord:
+    return RegradeRecord(id=row.id, course=course.name, lesson=row.lesson, version=row.version,
+                         committed_by=row.committed_by.name, committed_at=row.committed_at, regraded=row.regraded,
+                         changed=row.changed, skipped=row.skipped)
+
+
+def _graded(session: Session, course: Course, lesson: str) -> list[tuple[Submission, Grade]]:
+    return [(s, g) for s, g in session.execute(
+        select(Submission, Grade).join(Grade, Grade.submission_id == Submission.id)
+        .where(Submission.course_id == course.id, Submission.lesson == lesson, Grade.superseded_at.is_(None))
+        .order_by(Submission.id))]
+
+
+def _why(item_id: str, old_rubric, new_rubric, new_item) -> str:
+    reasons = []
+    old_def = next((i for i in old_rubric.items if i.id == item_id), None)
+    new_def = next((i for i in new_rubric.items if i.id == item_id), None)
+    if old_def is None or new_def is None:
+        reasons.append("item added in the new version" if old_def is None else "item removed in the new version")
+    else:
+        if old_def.points != new_def.points:
+            reasons.append(f"points {old_def.points:g} -> {new_def.points:g}")
+        for name in new_def.tolerances:
+            a, b = old_rubric.tolerances.get(name), new_rubric.tolerances.get(name)
+            if b is not None and (a is None or (a.value, a.unit) != (b.value, b.unit)):
+                reasons.append(f"tolerance {name}: {f'{a.value:g} {a.unit}' if a else 'new'} -> {b.value:g} {b.unit}")
+        if old_def.check != new_def.check:
+            reasons.append(f"check {old_def.check} -> {new_def.check}")
+    if new_item is not None:
+        reasons.append(new_item.feedback)
+    return "; ".join(reasons)
+
+
+def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric):
+    """(entry, new GradeReport or None) for one submission, from its stored measurements only."""
+    import rubric
+    from rubric.governance import regrade_preview
+
+    entry = dict(submission_id=submission.id, student=submission.student.name, old_version=grade.rubric_version,
+                 new_version=new_rubric.version, old_total=grade.total, new_total=None, max_total=None,
+                 changed_items=[])
+    if grade.rubric_version == new_rubric.version:
+        return RegradeEntry(**entry, skipped=f"already graded under v{new_rubric.version}"), None
+    try:
+        sheet = rubric.parse_sheet(submission.sheet)
+        measured = {run.name for run in submission.case_runs}
+        missing = sorted(spec.name for spec in rubric.cases_to_run(sheet, new_rubric) if spec.name not in measured)
+        if missing:
+            return RegradeEntry(**entry, skipped=f"v{new_rubric.version} needs cases never measured for this "
+                                                 f"submission: {', '.join(missing)}"), None
+        results = {run.name: stored_result(run) for run in submission.case_runs}
+        new = rubric.grade_sheet(sheet, results, new_rubric)
+    except Exception as exc:  # one submission that cannot be regraded must not hide the others
+        return RegradeEntry(**entry, skipped=f"regrading failed: {type(exc).__name__}: {exc}"), None
+    old = rubric.GradeReport.model_validate(grade.report)
+    row = regrade_preview({"s": old}, {"s": new}).rows[0]
+    new_items = {i.id: i for i in new.items}
+    entry.update(new_total=new.total, max_total=new.max_total, changed_items=[
+        ItemDiff(**change.model_dump(), why=_why(change.id, old_rubric, new_rubric, new_items.get(change.id)))
+        for change in row.changed_items])
+    return RegradeEntry(**entry), new
+
+
+def _compute(session: Session, course: Course, lesson: str, version: str):
+    from rubric.governance import rubric_changes
+    from rubric.scoring.engine import ensure_gradable
+
+    started = time.perf_counter()
+    new_rubric = get_version(session, lesson, version)
+    ensure_gradable(new_rubric)
+    graded = _graded(session, course, lesson)
+    old_rubrics = {v: get_version(session, lesson, v) for v in sorted({g.rubric_version for _, g in graded})}
+    results = [_regrade_one(s, g, old_rubrics[g.rubric_version], new_rubric) for s, g in graded]
+    preview = RegradePreview(
+        course=course.name, lesson=lesson, current_version=course_version(session, course.id, lesson),
+        new_version=new_rubric.version,
+        rubric_changes={v: rubric_changes(r, new_rubric) for v, r in old_rubrics.items() if v != new_rubric.version},
+        entries=[entry for entry, _ in results], elapsed_s=time.perf_counter() - started)
+    return preview, results, new_rubric
+
+
+def preview_regrade(session: Session, *, course: Course, lesson: str, version: str) -> RegradePreview:
+    """What regrading every current grade of the course's lesson under `version` would change; writes nothing.
+
+    LookupError for an unknown version, rubric.ArchivedRubric for one that can no longer grade."""
+    preview, _, _ = _compute(session, course, lesson, version)
+    session.rollback()  # recording shipped versions is the only write a preview may cause; keep none
+    return preview
+
+
+def commit_regrade(session: Session, *, course: Course, lesson: str, version: str, user: User) -> tuple[Regrade, RegradePreview]:
+    """Regrade under `version` and write it (commits): new current grades, the old ones superseded and kept."""
+    preview, results, new_rubric = _compute(session, course, lesson, version)
+    now = utcnow()
+    regrade = Regrade(course_id=course.id, lesson=lesson, version=new_rubric.version, committed_by_id=user.id,
+                      committed_at=now, regraded=0, changed=len(preview.changed),
+                      skipped=[{"submission_id": e.submission_id, "student": e.student, "reason": e.skipped}
+                               for e in preview.entries if e.skipped])
+    session.add(regrade)
+    session.flush()
+    graded = {s.id: g for s, g in _graded(session, course, lesson)}
+    for entry, report in results:
+        if report is None:
+            continue
+        old = graded[entry.submission_id]
+        old.superseded_at = now
+        session.flush()  # the old grade stops being current before the new one becomes current
+        session.add(Grade(submission_id=entry.submission_id, rubric_lesson=new_rubric.lesson,
+                          rubric_version=new_rubric.version, rubric_hash=new_rubric.content_hash, total=report.total,
+                          max_total=report.max_total, report=report.model_dump(mode="json"),
+                          execution_s=preview.elapsed_s / max(len(results), 1), created_at=now, regrade_id=regrade.id))
+        regrade.regraded += 1
+    session.commit()
+    return regrade, preview
