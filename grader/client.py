@@ -44,6 +44,21 @@ class Client:
     def dashboard(self, course: str) -> dict:
         return self._ok(self.http.get(f"/courses/{course}/dashboard"))
 
+    def grade_history(self, submission_id: int) -> list:
+        return self._ok(self.http.get(f"/submissions/{submission_id}/grades"))
+
+    def rubric_versions(self, lesson: str = "L03") -> list:
+        return self._ok(self.http.get(f"/rubrics/{lesson}/versions"))
+
+    def publish_rubric(self, content: dict) -> dict:
+        return self._ok(self.http.post("/rubrics/versions", json=content))
+
+    def regrade_preview(self, course: str, version: str, lesson: str = "L03") -> dict:
+        return self._ok(self.http.get(f"/courses/{course}/regrade-preview", params={"version": version, "lesson": lesson}))
+
+    def commit_regrade(self, course: str, version: str, lesson: str = "L03") -> dict:
+        return self._ok(self.http.post(f"/courses/{course}/regrades", json={"version": version, "lesson": lesson}))
+
     def wait(self, submission_id: int, *, poll_s: float = 1.0, on_progress: Callable[[dict], None] | None = None,
              timeout_s: float | None = None) -> dict:
         """Poll until graded or failed; on_progress gets every status body."""

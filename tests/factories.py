@@ -110,5 +110,8 @@ def rubric_v3(**tolerance_values: float) -> dict:
     content["review"] = {"reviewer": "regrade test instructor", "review_date": today,
                          "notes": "tightened for the regrade tests"}
     for name, value in tolerance_values.items():
-        content["tolerances"][name] |= {"value": value, "reviewer": "regrade test instructor", "review_date": today}
+        content["tolerances"][name] |= {
+            "value": value, "reviewer": "regrade test instructor", "review_date": today,
+            "rationale": f"regrade test: {name} reviewed to {value:g} {content['tolerances'][name]['unit']} to see "
+                         "which verdicts a tighter range changes"}
     return content

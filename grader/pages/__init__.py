@@ -1,5 +1,11 @@
 """Server-rendered pages (Jinja2 templates in grader/templates, assets in grader/static): sign-in and reports."""
 
-from grader.pages.routes import router
+from fastapi import APIRouter
+
+from grader.pages import regrade, routes
+
+router = APIRouter()
+router.include_router(routes.router)
+router.include_router(regrade.router)
 
 __all__ = ["router"]

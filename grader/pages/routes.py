@@ -17,7 +17,7 @@ from sqlalchemy import select
 from grader import crud
 from grader.api.deps import SessionDep
 from grader.api.routes.files import EVIDENCE
-from grader.core.rubrics import current_grade
+from grader.core.rubrics import current_grade, grade_history
 from grader.models import Course, Grade, Submission
 from grader.pages.auth import PageUser, clear_session_cookie, set_session_cookie
 from grader.pages.views import report_view
@@ -105,8 +105,8 @@ def report_page(request: Request, submission_id: int, session: SessionDep, user:
         return _not_found(request, user, f"submission {submission_id}")
     grade = current_grade(session, submission.id)
     view = report_view(submission, grade)
-    return TEMPLATES.TemplateResponse(request, "report.html",
-                                      {"user": user, "view": view, "part_titles": PART_TITLES})
+    return TEMPLATES.TemplateResponse(request, "report.html", {
+        "user": user, "view": view, "part_titles": PART_TITLES, "history": grade_history(session, submission.id)})
 
 
 @router.get("/submissions/{submission_id}/results.json")

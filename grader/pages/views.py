@@ -132,11 +132,14 @@ def _tolerance_rows(names: dict[str, str], rubric) -> list[dict]:
 
 
 def _rubric(grade: Grade):
-    from rubric import load_rubric
+    """The grade's rubric version as the service stored it (shipped or published by an instructor)."""
+    from grader.core.db import new_session
+    from grader.core.rubrics import get_version
 
     try:
-        return load_rubric(grade.rubric_lesson, grade.rubric_version)
-    except Exception:  # a grade stays readable even if its rubric file is gone: tolerances then show bare values
+        with new_session() as session:
+            return get_version(session, grade.rubric_lesson, grade.rubric_version)
+    except Exception:  # a grade stays readable even if its rubric is unreadable: tolerances then show bare values
         return None
 
 

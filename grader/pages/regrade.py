@@ -1,0 +1,74 @@
+"""The instructor's rubric pages: the course's rubric versions and regrades, a regrade's preview, and its commit.
+
+Instructors and auditors of the course read them; only an instructor commits (a POST form; the session cookie is
+SameSite=Strict, so another site cannot post it). Everything else is the 404 page, revealing nothing.
+"""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Form, Request, status
+from fastapi.responses import HTMLResponse, RedirectResponse
+from sqlalchemy import select
+
+from grader.api.deps import SessionDep
+from grader.core import rubrics as store
+from grader.models import Course, Regrade
+from grader.pages.auth import PageUser
+from grader.pages.routes import TEMPLATES, _not_found, _sign_in_redirect
+from grader.regrade import commit_regrade, preview_regrade, record
+
+router = APIRouter(include_in_schema=False)
+
+
+def _staff_course(session, user, course: str) -> Course | None:
+    row = session.scalar(select(Course).where(Course.name == course))
+    if row is None or row.id != user.course_id or user.role == "student":
+        return None
+    return row
+
+
+@router.get("/courses/{course}/rubrics", response_class=HTMLResponse)
+def rubrics_page(request: Request, course: str, session: SessionDep, user: PageUser, lesson: str = "L03"):
+    if user is None:
+        return _sign_in_redirect(request)
+    row = _staff_course(session, user, course)
+    if row is None or lesson not in ("L03",):
+        return _not_found(request, user, f"rubrics of course {course}")
+    versions = store.sync_shipped(session, lesson)
+    session.commit()
+    regrades = [record(r, row) for r in session.scalars(
+        select(Regrade).where(Regrade.course_id == row.id, Regrade.lesson == lesson).order_by(Regrade.id.desc()))]
+    return TEMPLATES.TemplateResponse(request, "rubrics.html", {
+        "user": user, "course": row.name, "lesson": lesson, "versions": versions, "regrades": regrades,
+        "current": store.course_version(session, row.id, lesson)})
+
+
+@router.get("/courses/{course}/regrade", response_class=HTMLResponse)
+def regrade_preview_page(request: Request, course: str, session: SessionDep, user: PageUser, version: str = "",
+                         lesson: str = "L03"):
+    from rubric import ArchivedRubric
+
+    if user is None:
+        return _sign_in_redirect(request)
+    row = _staff_course(session, user, course)
+    if row is None:
+        return _not_found(request, user, f"regrade of course {course}")
+    try:
+        preview = preview_regrade(session, course=row, lesson=lesson, version=version)
+    except (LookupError, ArchivedRubric) as exc:
+        return TEMPLATES.TemplateResponse(request, "regrade.html", {
+            "user": user, "course": row.name, "error": str(exc), "preview": None}, status_code=409)
+    return TEMPLATES.TemplateResponse(request, "regrade.html", {
+        "user": user, "course": row.name, "error": None, "preview": preview})
+
+
+@router.post("/courses/{course}/regrade")
+def regrade_commit_page(request: Request, course: str, session: SessionDep, user: PageUser,
+                        version: str = Form(...), lesson: str = Form("L03")):
+    if user is None:
+        return _sign_in_redirect(request)
+    row = _staff_course(session, user, course)
+    if row is None or user.role != "instructor":
+        return _not_found(request, user, f"regrade of course {course}")
+    regrade, _ = commit_regrade(session, course=row, lesson=lesson, version=version, user=user)
+    return RedirectResponse(f"/courses/{row.name}/rubrics#regrade-{regrade.id}", status_code=status.HTTP_303_SEE_OTHER)
