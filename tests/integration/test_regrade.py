@@ -69,6 +69,22 @@ def test_a_published_version_is_previewed_without_writing_then_committed_in_the_
         assert "tolerance high_lane_unchanged: 0.01 m -> 1e-06 m" in b3["why"]
         assert entry["new_total"] == old["total"] - sum(c["old_score"] - c["new_score"] for c in entry["changed_items"])
 
+    # The same from the command line, over HTTP.
+    from click.testing import CliRunner
+
+    from grader.cli import main
+
+    cli = ["--url", stack.url, "--token", stack.tokens["rita"]]
+    listed = CliRunner().invoke(main, ["rubric", "list", *cli])
+    assert listed.exit_code == 0 and "v3" in listed.output and "published by rita" in listed.output, listed.output
+    shown = CliRunner().invoke(main, ["rubric", "regrade", COURSE, "3", *cli])
+    assert shown.exit_code == 0 and "preview only: nothing written" in shown.output, shown.output
+    assert "B3: credit -> no_credit" in shown.output
+    refused = CliRunner().invoke(main, ["rubric", "regrade", COURSE, "3", "--commit", "--url", stack.url,
+                                        "--token", stack.tokens["ann"]])
+    assert refused.exit_code != 0 and "only instructors may commit a regrade" in refused.output, refused.output
+    assert _counts(stack) == counts
+
     # The instructor finds it from the pages: rubric versions, preview, commit.
     page = signed_in(browser, stack, "rita")
     page.click("text=Rubrics and regrades")
