@@ -8,6 +8,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.core.security import hash_token, new_token
+from grader.core.audit import spec_key
 from grader.models import ROLES, ApiToken, CaseRun, Course, Event, Submission, User
 
 
@@ -64,6 +65,7 @@ def create_submission(
             backend=spec.backend,
             precision=spec.precision,
             spec=spec.model_dump(mode="json", exclude_computed_fields=True),
+            spec_key=spec_key(spec.model_dump(mode="json", exclude_computed_fields=True)),
         )
         session.add(run)
         session.flush()

@@ -77,7 +77,13 @@ class Submission(Base):
     graded_at: Mapped[datetime | None] = mapped_column(DateTime)
 
     student: Mapped[User] = relationship(lazy="joined")
-    case_runs: Mapped[list[CaseRun]] = relationship(back_populates="submission", order_by="CaseRun.id")
+    # The runs that grade it; audit re-runs of its runs (purpose "audit") are kept apart and never graded.
+    case_runs: Mapped[list[CaseRun]] = relationship(
+        primaryjoin="and_(Submission.id == CaseRun.submission_id, CaseRun.purpose == 'grading')",
+        order_by="CaseRun.id", viewonly=True)
+    audit_runs: Mapped[list[CaseRun]] = relationship(
+        primaryjoin="and_(Submission.id == CaseRun.submission_id, CaseRun.purpose == 'audit')",
+        order_by="CaseRun.id", viewonly=True)
 
 
 class CaseRun(Base):
@@ -110,12 +116,20 @@ class CaseRun(Base):
     reused_from_id: Mapped[int | None] = mapped_column(ForeignKey("case_runs.id"))
     worker: Mapped[str | None] = mapped_column(String(255))
     worker_pid: Mapped[int | None] = mapped_column(Integer)
+    # "grading" runs decide a submission's grade; "audit" runs re-measure another run on another backend, precision
+    # or execution mode for the discrepancy log and never touch a grade.
+    purpose: Mapped[str] = mapped_column(String(16), default="grading", server_default="grading")
+    mode: Mapped[str | None] = mapped_column(String(16))  # requested execution mode; None: the worker's setting
+    source_case_run_id: Mapped[int | None] = mapped_column(ForeignKey("case_runs.id"))  # what an audit run re-measures
+    requested_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))
+    # The physics of the spec without its name, backend and precision: runs with one spec_key measure the same case.
+    spec_key: Mapped[str | None] = mapped_column(String(64), index=True)
     lease_until: Mapped[datetime | None] = mapped_column(DateTime)
     queued_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(DateTime)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime)
 
-    submission: Mapped[Submission] = relationship(back_populates="case_runs")
+    submission: Mapped[Submission] = relationship()
 
 
 class Measurement(Base):
@@ -196,6 +210,37 @@ class Grade(Base):
     regrade_id: Mapped[int | None] = mapped_column(ForeignKey("regrades.id"))
 
     regrade: Mapped[Regrade | None] = relationship(lazy="joined")
+
+
+class AuditEntry(Base):
+    """One comparison of two measurements of one case that differ in backend, precision or execution mode.
+
+    Append-only: the database itself refuses an UPDATE or DELETE (a trigger, migration 0004), and neither case run
+    it compares is ever deleted or overwritten. `variant` strings read "cpu/32/warm".
+    """
+
+    __tablename__ = "audit_entries"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow, index=True)
+    course_id: Mapped[int | None] = mapped_column(ForeignKey("courses.id"), index=True)
+    lesson: Mapped[str] = mapped_column(String(16))
+    case: Mapped[str] = mapped_column(String(64))
+    spec_key: Mapped[str] = mapped_column(String(64), index=True)
+    spec: Mapped[dict[str, Any]]
+    left_case_run_id: Mapped[int] = mapped_column(ForeignKey("case_runs.id"))
+    right_case_run_id: Mapped[int | None] = mapped_column(ForeignKey("case_runs.id"))
+    left_variant: Mapped[str] = mapped_column(String(48))
+    right_variant: Mapped[str] = mapped_column(String(48))
+    left_provenance: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    right_provenance: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    # identical | within_tolerance | numeric_drift | relation_changed | provenance_violation | not_compared
+    classification: Mapped[str] = mapped_column(String(24), index=True)
+    summary: Mapped[str] = mapped_column(Text)
+    comparison: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    figures_dir: Mapped[str | None] = mapped_column(Text)
+    figures: Mapped[list[Any]]
+    requested_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))
 
 
 class Event(Base):

@@ -22,7 +22,7 @@ from worker import reuse
 def reusable(*, session: Session, run: CaseRun, key_inputs: dict[str, Any]) -> Measurement | None:
     """Set the run's content key; the stored measurement under it, unless the submission forces a re-run."""
     run.content_key = reuse.content_key(key_inputs)
-    if run.submission.force_rerun:
+    if run.submission.force_rerun or run.purpose == "audit":  # an audit re-run exists to measure again
         return None
     return session.scalar(select(Measurement).where(Measurement.content_key == run.content_key))
 
@@ -41,7 +41,7 @@ def process_case_run(*, session: Session, case_run_id: int, attempt: int, run_ca
     from rubric import parse_case
 
     out_dir = Path(settings.artifacts_dir) / "case-runs" / str(run.id) / f"try-{run.tries}"
-    result = run_case(parse_case(run.spec), out_dir)
+    result = run_case(parse_case(run.spec), out_dir, **({"mode": run.mode} if run.mode else {}))
     stored = lifecycle.store_result(session=session, run=run, result=result, key_inputs=key_inputs)
     return run.submission_id if stored else None
 

@@ -13,15 +13,17 @@ from grader.settings import settings
 _warm_process = None
 
 
-def run_case_in_slot(spec, out_dir: Path):
-    """Run one case in this slot's warm case process (or isolated, per settings); always returns a CaseResult."""
+def run_case_in_slot(spec, out_dir: Path, mode: str | None = None):
+    """Run one case in this slot's warm case process, or isolated: `mode` when a run asks for one (an audit re-run),
+    else the worker's setting. Always returns a CaseResult."""
     global _warm_process
     from worker.case_process import WarmCaseProcess, run_case
 
-    if settings.execution_mode == "warm" and _warm_process is None:
+    mode = mode or settings.execution_mode
+    if mode == "warm" and _warm_process is None:
         _warm_process = WarmCaseProcess(max_cases=settings.warm_max_cases)
-    return run_case(spec, out_dir, mode=settings.execution_mode, timeout_s=settings.case_time_limit_s,
-                    warm_process=_warm_process)
+    return run_case(spec, out_dir, mode=mode, timeout_s=settings.case_time_limit_s,
+                    warm_process=_warm_process if mode == "warm" else None)
 
 
 def close_slot() -> None:

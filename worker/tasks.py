@@ -21,6 +21,7 @@ RETRY = dict(autoretry_for=INFRA_ERRORS, max_retries=settings.max_infra_retries,
 
 @app.task(name="worker.tasks.run_case_run", **RETRY)
 def run_case_run(case_run_id: int, attempt: int) -> None:
+    from worker.audit import audit_finished_run
     from worker.case_run import process_case_run
 
     with new_session() as session:
@@ -28,6 +29,8 @@ def run_case_run(case_run_id: int, attempt: int) -> None:
                                     run_case=slot.run_case_in_slot)
     if to_grade is not None:
         grade_submission.apply_async(args=[to_grade], queue=GRADE_QUEUE)
+    with new_session() as session:  # after grading was sent: the audit never delays a grade
+        audit_finished_run(session, case_run_id)
 
 
 @app.task(name="worker.tasks.grade_submission", **RETRY)

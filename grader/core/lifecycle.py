@@ -111,8 +111,8 @@ def _finish(session: Session, run: CaseRun, *, status: str, error: str | None = 
         run.error = error
     session.add(Event(submission_id=run.submission_id, case_run_id=run.id, state=status, detail=detail or error))
     session.flush()
-    open_runs = session.scalar(select(func.count()).select_from(CaseRun).where(
-        CaseRun.submission_id == submission.id, CaseRun.status.not_in(TERMINAL)))
+    open_runs = session.scalar(select(func.count()).select_from(CaseRun).where(  # audit re-runs never hold a grade
+        CaseRun.submission_id == submission.id, CaseRun.purpose == "grading", CaseRun.status.not_in(TERMINAL)))
     started = False
     if open_runs == 0:
         started = session.execute(
