@@ -24,3 +24,19 @@ def resend(resend) -> None:
         send_case_run(case_run_id, attempt, backend)
     for submission_id in resend.gradings:
         send_grade(submission_id)
+
+
+EMBEDDED_QUEUES = ("cpu", "grade")  # what the embedded service's one worker consumes (grader.embedded)
+
+
+def queue_listeners(queue: str, *, timeout_s: float = 1.0) -> list[str]:
+    """Names of the Celery workers consuming `queue` now, asked over the broker (remote control, `timeout_s`).
+
+    The embedded filesystem broker has no broadcast: there the answer is its one local worker's queues.
+    """
+    from worker.celery_app import app
+
+    if str(app.conf.broker_url).startswith("filesystem"):
+        return ["embedded worker"] if queue in EMBEDDED_QUEUES else []
+    replies = app.control.inspect(timeout=timeout_s).active_queues() or {}
+    return sorted(name for name, queues in replies.items() if any(q.get("name") == queue for q in queues))

@@ -44,7 +44,9 @@ def start_worker(log_path: Path) -> subprocess.Popen:
                BROKER_URL=settings.broker_url, ARTIFACTS_DIR=str(settings.artifacts_dir))
     from worker.celery_app import worker_argv
 
-    command = worker_argv(("cpu", "grade"), name="embedded@%h", heartbeat=False)
+    from grader.dispatch import EMBEDDED_QUEUES
+
+    command = worker_argv(EMBEDDED_QUEUES, name="embedded@%h", heartbeat=False)
     return subprocess.Popen(command, cwd=ROOT, env=env, stdout=log_path.open("ab"), stderr=subprocess.STDOUT,
                             start_new_session=True)
 

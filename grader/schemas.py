@@ -67,6 +67,9 @@ class CaseRunPublic(BaseModel):
     queued_at: datetime
     started_at: datetime | None
     finished_at: datetime | None
+    purpose: str = Field("grading", description="grading, or audit: a re-measurement that never counts in a grade")
+    mode: str | None = Field(None, description="Execution mode the run asked for (None: the worker's setting)")
+    source_case_run_id: int | None = Field(None, description="The case run an audit re-run re-measures")
 
     @property
     def reused(self) -> bool:
