@@ -2,10 +2,11 @@
 
 from fastapi import APIRouter
 
-from grader.pages import regrade, routes
+from grader.pages import audit, regrade, routes
 
 router = APIRouter()
 router.include_router(routes.router)
 router.include_router(regrade.router)
+router.include_router(audit.router)
 
 __all__ = ["router"]

@@ -119,3 +119,22 @@ def test_the_database_refuses_to_change_or_delete_an_entry(api):
             session.commit()
         session.rollback()
         assert session.get(AuditEntry, entry_id).classification == "numeric_drift"
+
+
+def test_the_audit_pages_for_staff_only(api):
+    run_id, entry_id = _graded_like(api)
+    api.client.post("/sign-in", data={"token": api.tokens["tess"], "next": "/audit"})
+    page = api.client.get("/audit")
+    assert page.status_code == 200 and f'id="entry-{entry_id}"' in page.text and "numeric drift" in page.text
+    one = api.client.get(f"/audit/{entry_id}")
+    assert one.status_code == 200 and "cpu/64/warm" in one.text and "Provenance side by side" in one.text
+    bad = api.client.get("/audit?backends=cpu;cuda")
+    assert bad.status_code == 422 and "backends" in bad.text
+    refused = api.client.post("/audit/reruns", data={"case_run_id": run_id, "backend": "cuda"}, follow_redirects=True)
+    assert "Refused: no worker is listening on queue" in refused.text
+    csv = api.client.get("/audit.csv")
+    assert csv.status_code == 200 and csv.text.startswith("entry_id,")
+    api.client.post("/sign-out")
+    api.client.post("/sign-in", data={"token": api.tokens["alice"], "next": "/audit"})
+    assert api.client.get("/audit").status_code == 404
+    assert api.client.get(f"/audit/{entry_id}").status_code == 404

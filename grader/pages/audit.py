@@ -1,0 +1,108 @@
+"""The audit pages (auditors and instructors of the course): the log with filters, one entry with both runs'
+figures and provenance side by side, the entry's figures, the CSV, and the form asking for an audit re-run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from fastapi import APIRouter, Form, HTTPException, Request, status
+from fastapi.responses import FileResponse, HTMLResponse, PlainTextResponse, RedirectResponse
+from pydantic import ValidationError
+
+from grader.api.deps import SessionDep
+from grader.api.routes.audit import AuditRerunRequest, Filters, entries_csv, filtered_entries, request_rerun
+from grader.models import AuditEntry, CaseRun
+from grader.pages.auth import PageUser
+from grader.pages.routes import TEMPLATES, _not_found, _sign_in_redirect
+
+router = APIRouter(include_in_schema=False)
+CLASS_TEXT = {
+    "identical": "identical", "within_tolerance": "within the reviewed tolerance", "numeric_drift": "numeric drift",
+    "relation_changed": "a qualitative relation changed", "provenance_violation": "provenance violation",
+    "not_compared": "not compared",
+}
+
+
+def _filters(request: Request) -> tuple[Filters, str | None]:
+    raw = {k: v for k, v in request.query_params.items() if v}
+    try:
+        return Filters.model_validate(raw), None
+    except ValidationError as exc:
+        return Filters(), "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in exc.errors())
+
+
+@router.get("/audit", response_class=HTMLResponse)
+def audit_page(request: Request, session: SessionDep, user: PageUser):
+    if user is None:
+        return _sign_in_redirect(request)
+    if user.role == "student":
+        return _not_found(request, user, "audit log")
+    filters, error = _filters(request)
+    entries = filtered_entries(session, user, filters)
+    runs = [r for r in session.query(CaseRun).filter(CaseRun.purpose == "audit").order_by(CaseRun.id.desc()).limit(20)
+            if r.submission.course_id == user.course_id]
+    return TEMPLATES.TemplateResponse(request, "audit.html", {
+        "user": user, "entries": entries, "filters": filters, "error": error, "classes": CLASS_TEXT,
+        "audit_runs": runs, "query": request.url.query, "message": request.query_params.get("message")},
+        status_code=422 if error else 200)
+
+
+@router.get("/audit.csv")
+def audit_csv(request: Request, session: SessionDep, user: PageUser):
+    if user is None:
+        return _sign_in_redirect(request)
+    if user.role == "student":
+        return _not_found(request, user, "audit log")
+    filters, error = _filters(request)
+    if error:
+        return PlainTextResponse(error, status_code=422)
+    return PlainTextResponse(entries_csv(filtered_entries(session, user, filters)), media_type="text/csv",
+                             headers={"Content-Disposition": 'attachment; filename="audit-log.csv"'})
+
+
+def _entry(session, user, entry_id: int) -> AuditEntry | None:
+    entry = session.get(AuditEntry, entry_id) if 0 < entry_id < 2**63 else None
+    return entry if entry is not None and user.role != "student" and entry.course_id == user.course_id else None
+
+
+@router.get("/audit/{entry_id}", response_class=HTMLResponse)
+def audit_entry_page(request: Request, entry_id: int, session: SessionDep, user: PageUser):
+    if user is None:
+        return _sign_in_redirect(request)
+    entry = _entry(session, user, entry_id)
+    if entry is None:
+        return _not_found(request, user, f"audit entry {entry_id}")
+    keys = sorted(set(entry.left_provenance or {}) | set(entry.right_provenance or {}))
+    return TEMPLATES.TemplateResponse(request, "audit_entry.html", {
+        "user": user, "e": entry, "c": entry.comparison or {}, "classes": CLASS_TEXT, "provenance_keys": keys})
+
+
+@router.get("/audit/{entry_id}/figures/{filename}")
+def audit_figure(request: Request, entry_id: int, filename: str, session: SessionDep, user: PageUser):
+    if user is None:
+        return _sign_in_redirect(request)
+    entry = _entry(session, user, entry_id)
+    if entry is None or filename not in entry.figures or not entry.figures_dir:
+        return _not_found(request, user, f"figure {filename}")
+    path = Path(entry.figures_dir) / filename
+    if not path.is_file():
+        return _not_found(request, user, f"figure {filename}")
+    return FileResponse(path, media_type="image/png")
+
+
+@router.post("/audit/reruns")
+def audit_rerun_form(request: Request, session: SessionDep, user: PageUser, case_run_id: int = Form(...),
+                     backend: str = Form("cpu"), precision: str = Form("32"), mode: str = Form("")):
+    if user is None:
+        return _sign_in_redirect(request)
+    try:
+        wanted = AuditRerunRequest(backend=backend, precision=precision, mode=mode or None)
+        run = request_rerun(case_run_id, wanted, session, user)
+        message = f"Audit re-run {run.name} (case run {run.id}) queued on {run.backend}; its entry appears here when it finishes."
+    except HTTPException as exc:
+        message = f"Refused: {exc.detail}"
+    except ValidationError as exc:
+        message = "Refused: " + "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in exc.errors())
+    from urllib.parse import urlencode
+
+    return RedirectResponse(f"/audit?{urlencode({'message': message})}", status_code=status.HTTP_303_SEE_OTHER)
