@@ -37,7 +37,9 @@ def audit_finished_run(session: Session, run_id: int) -> list[AuditEntry]:
             entries.append(_entry(session, session.get(CaseRun, run.source_case_run_id), run,
                                   requested_by_id=run.requested_by_id))
         elif _provenance_violation(run):
-            entries.append(_violation_entry(session, run))
+            entries.append(_violation_entry(session, run, run.error))
+        elif (reason := _pin_violation(session, run)) is not None:
+            entries.append(_violation_entry(session, run, reason))
         elif run.status == "done" and run.reused_from_id is None:
             for other in _other_variants(session, run):
                 entries.append(_entry(session, other, run))
@@ -51,6 +53,18 @@ def audit_finished_run(session: Session, run_id: int) -> list[AuditEntry]:
 
 def _provenance_violation(run: CaseRun) -> bool:
     return run.status == "failed" and any(m in (run.error or "") for m in PROVENANCE_MARKERS)
+
+
+def _pin_violation(session: Session, run: CaseRun) -> str | None:
+    """A finished run whose provenance breaks what its course's rubric pins (rubric.guards), or None."""
+    if run.status != "done" or run.reused_from_id is not None or not run.provenance:
+        return None
+    from grader.core.rubrics import course_rubric
+    from rubric import CaseResult, Provenance, parse_case
+    from rubric.guards import provenance_violation
+
+    result = CaseResult(spec=parse_case(run.spec), status="ok", provenance=Provenance.model_validate(run.provenance))
+    return provenance_violation(result, course_rubric(session, run.submission.course_id, run.submission.lesson))
 
 
 def _other_variants(session: Session, run: CaseRun) -> list[CaseRun]:
@@ -96,13 +110,13 @@ def _entry(session: Session, left: CaseRun, right: CaseRun, *, requested_by_id: 
                                     figures_dir=str(folder)))
 
 
-def _violation_entry(session: Session, run: CaseRun) -> AuditEntry:
+def _violation_entry(session: Session, run: CaseRun, reason: str | None) -> AuditEntry:
     return _add(session, AuditEntry(
         course_id=_course_of(run), lesson=run.submission.lesson, case=run.name, spec_key=run.spec_key, spec=run.spec,
         left_case_run_id=run.id, right_case_run_id=None, left_variant=variant(run),
         right_variant=f"requested {run.backend}/{run.precision}", left_provenance=run.provenance,
         right_provenance=None, classification="provenance_violation", comparison=None, figures=[],
-        summary=f"kept and excluded from grading: {run.error}"))
+        summary=reason if reason and "excluded from grading" in reason else f"kept and excluded from grading: {reason}"))
 
 
 def _draw(a, b, comparison, folder: Path) -> list[str]:

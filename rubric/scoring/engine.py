@@ -22,6 +22,7 @@ from pydantic import BaseModel
 from ..cases import BASELINE_CASES, COLOR_SWAP
 from ..metrics import ContactMetrics, FrictionMetrics, LaneMetrics
 from ..one_factor import ConfigFinding, one_factor_findings
+from ..guards import gradable
 from ..results import CaseResult
 from ..rubrics import Item, Rubric, load_rubric, version_key
 from ..sheet import PredictionSheet
@@ -267,6 +268,7 @@ def grade_sheet(sheet: PredictionSheet, results: Mapping[str, CaseResult], rubri
     if rubric.lesson != sheet.lesson:
         raise ValueError(f"rubric is for lesson {rubric.lesson}, the sheet for {sheet.lesson}")
     ensure_gradable(rubric)
+    results = gradable(dict(results), rubric)  # provenance violations: kept, never graded, the reason shown
     findings = one_factor_findings(sheet, rubric)
     ctx = Context(sheet, results, rubric, findings)
     items = [_grade_item(ctx, item) for item in rubric.items]
