@@ -20,9 +20,9 @@ from typing import Literal
 from pydantic import BaseModel
 
 from ..cases import BASELINE_CASES, COLOR_SWAP
+from ..guards import gradable
 from ..metrics import ContactMetrics, FrictionMetrics, LaneMetrics
 from ..one_factor import ConfigFinding, one_factor_findings
-from ..guards import gradable
 from ..results import CaseResult
 from ..rubrics import Item, Rubric, load_rubric, version_key
 from ..sheet import PredictionSheet
