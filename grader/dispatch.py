@@ -34,9 +34,36 @@ def queue_listeners(queue: str, *, timeout_s: float = 1.0) -> list[str]:
 
     The embedded filesystem broker has no broadcast: there the answer is its one local worker's queues.
     """
+    workers = live_workers(timeout_s=timeout_s)
+    if workers is None:
+        return ["embedded worker"] if queue in EMBEDDED_QUEUES else []
+    return sorted(name for name, queues in workers.items() if queue in queues)
+
+
+def queue_depths() -> dict[str, int | None]:
+    """Messages waiting in each queue, asked of the broker (None for a queue the broker could not answer for)."""
+    from kombu.exceptions import ChannelError
+
+    from worker.celery_app import BACKEND_QUEUES, GRADE_QUEUE, app
+
+    depths: dict[str, int | None] = {}
+    with app.connection_for_read() as connection:
+        channel = connection.default_channel
+        for queue in (*BACKEND_QUEUES, GRADE_QUEUE):
+            try:
+                depths[queue] = channel.queue_declare(queue=queue, passive=True).message_count
+            except ChannelError:  # a virtual transport's queue with no message has no key yet
+                depths[queue] = 0
+            except Exception:  # noqa: BLE001 - an unreachable broker shows as unknown, never as an empty queue
+                depths[queue] = None
+    return depths
+
+
+def live_workers(*, timeout_s: float = 1.0) -> dict[str, list[str]] | None:
+    """Each answering worker's queues (remote control); None where the broker has no broadcast (embedded)."""
     from worker.celery_app import app
 
     if str(app.conf.broker_url).startswith("filesystem"):
-        return ["embedded worker"] if queue in EMBEDDED_QUEUES else []
+        return None
     replies = app.control.inspect(timeout=timeout_s).active_queues() or {}
-    return sorted(name for name, queues in replies.items() if any(q.get("name") == queue for q in queues))
+    return {name: sorted(q.get("name", "?") for q in queues) for name, queues in sorted(replies.items())}

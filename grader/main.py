@@ -7,6 +7,7 @@ from fastapi.staticfiles import StaticFiles
 
 from grader.api import errors
 from grader.api.main import api_router
+from grader.api.routes.health import metrics_router
 from grader.pages import router as pages_router
 from grader.settings import settings
 
@@ -19,5 +20,6 @@ app = FastAPI(
 )
 errors.install(app, max_bytes=settings.max_body_bytes)
 app.include_router(api_router)
+app.include_router(metrics_router)
 app.include_router(pages_router)
 app.mount("/static", StaticFiles(directory=Path(__file__).resolve().parent / "static"), name="static")

@@ -116,4 +116,37 @@ def run(host: str, port: int, sheet, exit_after_grading: bool) -> None:
                           exit_after_grading=exit_after_grading))
 
 
-COMMANDS = (admin, worker, reconcile, submit, run)
+
+
+@click.command()
+@click.option("--timeout", "timeout_s", type=float, default=1.0, show_default=True,
+              help="Seconds to wait for workers to answer.")
+def status(timeout_s: float) -> None:
+    """What an operator watches: queues, live workers, case runs by state, failures by reason, durations."""
+    import statistics
+
+    from grader.core.db import new_session
+    from grader.ops import service_status
+
+    with new_session() as session:
+        s = service_status(session, timeout_s=timeout_s)
+    if s.broker_error:
+        click.echo(f"broker: UNREACHABLE ({s.broker_error})")
+    click.echo("queues:   " + ", ".join(f"{q} {'?' if n is None else n}" for q, n in s.queues.items()))
+    if s.workers is None:
+        click.echo("workers:  not knowable on the embedded broker (one local worker on cpu, grade)")
+    else:
+        click.echo(f"workers:  {len(s.workers)} live" + "".join(f"\n  {name}: {', '.join(queues)}"
+                                                             for name, queues in s.workers.items()))
+    click.echo("submissions: " + (", ".join(f"{k} {v}" for k, v in sorted(s.submissions_by_state.items())) or "none"))
+    for backend, states in sorted(s.case_runs_by_state.items()):
+        click.echo(f"case runs on {backend}: " + ", ".join(f"{k} {v}" for k, v in sorted(states.items())))
+    click.echo("failures: " + (", ".join(f"{k} {v}" for k, v in sorted(s.failures_by_reason.items())) or "none"))
+    click.echo(f"stuck:    {s.stuck_case_runs} case runs past their lease")
+    if s.durations_s:
+        q = statistics.quantiles(s.durations_s, n=20) if len(s.durations_s) > 1 else s.durations_s * 19
+        click.echo(f"measured case runs: {len(s.durations_s)}, median {statistics.median(s.durations_s):.1f} s, "
+                   f"p95 {q[-1]:.1f} s")
+
+
+COMMANDS = (admin, worker, reconcile, submit, run, status)

@@ -68,3 +68,10 @@ def test_deployment_uses_postgres_and_redis_not_the_embedded_defaults(compose):
         env = compose["services"][name]["environment"]
         assert env["DATABASE_URL"].startswith("postgresql") and env["BROKER_URL"].startswith("redis://")
         assert env["ENVIRONMENT"] == "production"
+
+
+def test_operators_get_flower_on_the_same_broker_and_loopback_only(compose):
+    flower = compose["services"]["flower"]
+    assert "--broker=redis://redis:6379/0" in flower["command"]
+    assert compose["x-service-env"]["BROKER_URL"] == "redis://redis:6379/0"
+    assert all(port.startswith("127.0.0.1:") for port in flower["ports"])

@@ -14,3 +14,21 @@ def health(session: SessionDep) -> Health:
     """Liveness and database reachability."""
     session.execute(text("SELECT 1"))
     return Health(status="ok", database=session.get_bind().dialect.name, version="1")
+
+
+# At the root, where Prometheus scrapes by default; aggregate counts only, no token (like /v1/health).
+metrics_router = APIRouter()
+
+
+@metrics_router.get("/metrics", include_in_schema=False)
+def metrics():
+    """Prometheus metrics (text exposition format): queues, workers, case runs, failures, durations."""
+    from fastapi.responses import Response
+    from prometheus_client import CONTENT_TYPE_LATEST, CollectorRegistry, generate_latest
+
+    from grader.core.db import new_session
+    from grader.ops import StatusCollector
+
+    registry = CollectorRegistry()
+    registry.register(StatusCollector(new_session))
+    return Response(generate_latest(registry), media_type=CONTENT_TYPE_LATEST)

@@ -1,0 +1,119 @@
+"""What an operator watches: queue depth per queue, case runs by state and backend, case durations, failures by
+reason, stuck runs and live workers. Served as Prometheus metrics (`GET /metrics`, prometheus_client) and printed
+by `grader status`; both read `service_status`, so they never disagree."""
+
+from __future__ import annotations
+
+from collections import Counter
+from datetime import timedelta
+
+from pydantic import BaseModel
+from sqlalchemy import func, select
+from sqlalchemy.orm import Session
+
+from grader.models import CaseRun, Submission, utcnow
+from grader.settings import settings
+
+DURATION_BUCKETS_S = (1, 2, 5, 10, 20, 30, 60, 120, 300, 600, 900)
+
+
+class ServiceStatus(BaseModel):
+    queues: dict[str, int | None]  # messages waiting; None: the broker did not answer for it
+    workers: dict[str, list[str]] | None  # live workers and their queues; None: not knowable (embedded broker)
+    submissions_by_state: dict[str, int]
+    case_runs_by_state: dict[str, dict[str, int]]  # backend -> state -> count
+    failures_by_reason: dict[str, int]
+    stuck_case_runs: int
+    durations_s: list[float]  # wall time of every case measured (not reused), for the histogram
+    broker_error: str | None = None
+
+
+def failure_reason(run: CaseRun) -> str:
+    """A failed case run's reason, as a small fixed set an operator can alert on."""
+    error = (run.error or "").lower()
+    if run.result_status == "timeout" or "time limit" in error:
+        return "timeout"
+    if "provenance" in error:
+        return "provenance"
+    if "gave up after" in error:
+        return "worker_lost"
+    if run.result_status == "invalid":
+        return "invalid_result"
+    if "case process" in error or "exit" in error:
+        return "case_crashed"
+    return "other"
+
+
+def service_status(session: Session, *, timeout_s: float = 1.0) -> ServiceStatus:
+    from grader import dispatch
+
+    broker_error = None
+    try:
+        queues, workers = dispatch.queue_depths(), dispatch.live_workers(timeout_s=timeout_s)
+    except Exception as exc:  # noqa: BLE001 - the broker down is itself the thing to see
+        queues, workers, broker_error = {}, {}, f"{type(exc).__name__}: {exc}"
+    by_state: dict[str, dict[str, int]] = {}
+    for backend, state, n in session.execute(
+            select(CaseRun.backend, CaseRun.status, func.count()).group_by(CaseRun.backend, CaseRun.status)):
+        by_state.setdefault(backend, {})[state] = n
+    failed = session.scalars(select(CaseRun).where(CaseRun.status == "failed"))
+    now = utcnow()
+    stuck = session.scalar(select(func.count()).select_from(CaseRun).where(
+        ((CaseRun.status == "running") & (CaseRun.lease_until < now))
+        | ((CaseRun.status == "queued") & (CaseRun.queued_at < now - timedelta(seconds=settings.queue_lease_s)))))
+    durations = session.scalars(select(CaseRun.wall_s).where(
+        CaseRun.status == "done", CaseRun.reused_from_id.is_(None), CaseRun.wall_s.is_not(None))).all()
+    return ServiceStatus(
+        queues=queues, workers=workers, broker_error=broker_error,
+        submissions_by_state=dict(session.execute(
+            select(Submission.status, func.count()).group_by(Submission.status)).all()),
+        case_runs_by_state=by_state, failures_by_reason=dict(Counter(failure_reason(r) for r in failed)),
+        stuck_case_runs=stuck or 0, durations_s=[float(d) for d in durations])
+
+
+class StatusCollector:
+    """A prometheus_client collector reading service_status at each scrape."""
+
+    def __init__(self, session_factory):
+        self.session_factory = session_factory
+
+    def collect(self):
+        from prometheus_client.core import GaugeMetricFamily, HistogramMetricFamily
+
+        with self.session_factory() as session:
+            status = service_status(session)
+        depth = GaugeMetricFamily("grader_queue_depth", "Messages waiting in a Celery queue", labels=["queue"])
+        for queue, n in status.queues.items():
+            if n is not None:
+                depth.add_metric([queue], n)
+        yield depth
+        up = GaugeMetricFamily("grader_broker_up", "1 when the broker answered this scrape")
+        up.add_metric([], 0 if status.broker_error else 1)
+        yield up
+        if status.workers is not None:
+            workers = GaugeMetricFamily("grader_worker_up", "A Celery worker answering remote control, per queue",
+                                        labels=["worker", "queue"])
+            for name, queues in status.workers.items():
+                for queue in queues:
+                    workers.add_metric([name, queue], 1)
+            yield workers
+        submissions = GaugeMetricFamily("grader_submissions", "Submissions by state", labels=["state"])
+        for state, n in status.submissions_by_state.items():
+            submissions.add_metric([state], n)
+        yield submissions
+        runs = GaugeMetricFamily("grader_case_runs", "Case runs by backend and state", labels=["backend", "state"])
+        for backend, states in status.case_runs_by_state.items():
+            for state, n in states.items():
+                runs.add_metric([backend, state], n)
+        yield runs
+        failures = GaugeMetricFamily("grader_case_run_failures", "Failed case runs by reason", labels=["reason"])
+        for reason, n in status.failures_by_reason.items():
+            failures.add_metric([reason], n)
+        yield failures
+        stuck = GaugeMetricFamily("grader_stuck_case_runs", "Case runs past their lease or queue lease")
+        stuck.add_metric([], status.stuck_case_runs)
+        yield stuck
+        buckets = [(str(b), sum(1 for d in status.durations_s if d <= b)) for b in DURATION_BUCKETS_S]
+        buckets.append(("+Inf", len(status.durations_s)))
+        yield HistogramMetricFamily("grader_case_run_duration_seconds", "Wall time of measured (not reused) case runs",
+                                    buckets=buckets, sum_value=sum(status.durations_s))
