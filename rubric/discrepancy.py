@@ -11,7 +11,6 @@ array bit-equal and every metric equal).
 from __future__ import annotations
 
 import json
-import math
 import re
 from collections.abc import Mapping
 from typing import Literal
@@ -24,7 +23,8 @@ from pydantic_core import PydanticCustomError
 from .metrics import ContactMetrics, FrictionMetrics, LaneMetrics, _ticks, align
 from .relations import cases_agree, direction, lanes_by_pair, proxy_change, stop_change
 from .results import FRAME_FIELDS, CaseResult
-from .rubrics import LESSONS_DIR, VERSION_PATTERN, ReviewRecord, Rubric, Tolerance, load_rubric, version_key
+from . import rubrics
+from .rubrics import VERSION_PATTERN, ReviewRecord, Rubric, Tolerance, load_rubric, version_key
 from .specs import ContactCase, field_changes
 
 Classification = Literal["identical", "within_tolerance", "numeric_drift", "relation_changed"]
@@ -72,7 +72,7 @@ class AuditTolerances(BaseModel):
 def audit_versions(lesson: str = "L03") -> list[str]:
     """Audit tolerance versions shipped for a lesson, oldest first (files named LESSON-audit-vVERSION.yaml)."""
     pattern = re.compile(rf"^{re.escape(lesson)}-audit-v([0-9.]+)\.yaml$")
-    found = [m.group(1) for p in LESSONS_DIR.glob("*.yaml") if (m := pattern.match(p.name))]
+    found = [m.group(1) for p in rubrics.LESSONS_DIR.glob("*.yaml") if (m := pattern.match(p.name))]
     return sorted((v for v in found if re.match(VERSION_PATTERN, v)), key=version_key)
 
 
@@ -80,11 +80,11 @@ def load_audit_tolerances(lesson: str = "L03", version: str | None = None) -> Au
     """A lesson's audit tolerances at `version`, or the latest; the file's own lesson/version must agree."""
     versions = audit_versions(lesson)
     if not versions:
-        raise LookupError(f"no audit tolerance files for lesson {lesson!r} in {LESSONS_DIR}")
+        raise LookupError(f"no audit tolerance files for lesson {lesson!r} in {rubrics.LESSONS_DIR}")
     version = version or versions[-1]
     if version not in versions:
         raise LookupError(f"lesson {lesson} has no audit tolerances version {version!r}; known: {', '.join(versions)}")
-    data = yaml.safe_load((LESSONS_DIR / f"{lesson}-audit-v{version}.yaml").read_text())
+    data = yaml.safe_load((rubrics.LESSONS_DIR / f"{lesson}-audit-v{version}.yaml").read_text())
     loaded = AuditTolerances.model_validate_json(json.dumps(data, default=str))
     if (loaded.lesson, loaded.version) != (lesson, version):
         raise ValueError(f"{lesson}-audit-v{version}.yaml declares lesson {loaded.lesson} version {loaded.version}")
@@ -99,8 +99,8 @@ class ArrayDiff(BaseModel):
     name: str
     unit: str
     shared_samples: int
-    max_abs: float
-    rms: float
+    max_abs: float | None  # None: the two records share no sample time
+    rms: float | None
     bit_equal: bool
     tolerance: str
     tolerance_value: float
@@ -202,11 +202,11 @@ def array_diffs(left: CaseResult, right: CaseResult, tolerances: AuditTolerances
             continue
         tol_name, tol = tolerances.of(_quantity(left, name))
         d = a[il].astype(np.float64) - b[ir].astype(np.float64)
-        max_abs = float(np.max(np.abs(d))) if d.size else math.nan
-        rms = float(np.sqrt(np.mean(d * d))) if d.size else math.nan
+        max_abs = float(np.max(np.abs(d))) if d.size else None
+        rms = float(np.sqrt(np.mean(d * d))) if d.size else None
         out.append(ArrayDiff(name=name, unit=tol.unit, shared_samples=len(il), max_abs=max_abs, rms=rms,
                              bit_equal=same_axis and np.array_equal(a, b), tolerance=tol_name,
-                             tolerance_value=tol.value, within=bool(d.size) and max_abs <= tol.value))
+                             tolerance_value=tol.value, within=max_abs is not None and max_abs <= tol.value))
     return out
 
 
@@ -328,14 +328,20 @@ def compare_cases(left: CaseResult, right: CaseResult, tolerances: AuditToleranc
     return comparison.model_copy(update={"summary": summarize(comparison)})
 
 
+def _show(value: Value) -> str:
+    return f"{value:.6g}" if isinstance(value, float) else str(value)
+
+
 def summarize(c: CaseComparison) -> str:
     head = f"{c.case}: {c.classification} ({c.left} vs {c.right}, {c.shared_times} shared sample times, {c.tolerances_version})"
     parts = [head]
     changed = [r for r in c.relations if r.changed]
     if changed:
         parts.append("relations changed: " + "; ".join(f"{r.id} {r.left} -> {r.right}" for r in changed))
-    over = [f"{a.name} max {a.max_abs:.3g} {a.unit} > {a.tolerance_value:g}" for a in c.arrays if not a.within]
-    over += [f"{m.name} {m.left} vs {m.right}" + (f" (|diff| {m.abs_diff:.3g} {m.unit})" if m.abs_diff is not None else "")
+    over = [f"{a.name} max {a.max_abs:.3g} {a.unit} > {a.tolerance_value:g}" if a.max_abs is not None
+            else f"{a.name}: no shared sample times" for a in c.arrays if not a.within]
+    over += [f"{m.name} {_show(m.left)} vs {_show(m.right)}"
+             + (f" (|diff| {m.abs_diff:.3g} {m.unit} > {m.tolerance})" if m.abs_diff is not None else "")
              for m in c.metrics if not m.within]
     if over:
         parts.append("beyond tolerance: " + "; ".join(over))

@@ -80,7 +80,9 @@ def _difference(ax, t: np.ndarray, d: np.ndarray, record: ArrayDiff | None, shor
         ax.step(t, d, where="post", color="k", lw=1.3, label="left \u2212 right")
     else:
         ax.plot(t, d, color="k", lw=1.2, marker=".", ms=3, label="left \u2212 right")
-    if record is not None:
+    if record is not None and record.max_abs is None:
+        ax.set_title(f"{short}: the two records share no sample time", fontsize=9.5)
+    elif record is not None:
         if record.tolerance_value > 0:
             ax.axhspan(-record.tolerance_value, record.tolerance_value, color="#56B4E9", alpha=0.25,
                        label=f"\u00b1 {record.tolerance_value:g} {record.unit} ({record.tolerance})")
