@@ -23,6 +23,16 @@ from .results import CaseResult, Discretization, Provenance, expected_arrays, va
 from .specs import CaseSpec, ContactCase, FieldChange, FrictionCase, describe_errors, field_changes, parse_case
 
 from .analysis import ClassAnalysis, class_analysis
+from .discrepancy import (
+    ArrayDiff,
+    AuditTolerances,
+    CaseComparison,
+    MetricDiff,
+    RelationCheck,
+    compare_cases,
+    compare_relations,
+    load_audit_tolerances,
+)
 from .exports import grades_csv, gradescope_results
 from .governance import RegradePreview, RubricGovernanceError, publish_version, regrade_preview
 from .one_factor import ConfigFinding, one_factor_findings
@@ -31,6 +41,14 @@ from .scoring import ArchivedRubric, GradeReport, ItemGrade, cases_to_run, grade
 from .sheet import PredictionSheet, parse_sheet
 
 __all__ = [
+    "ArrayDiff",
+    "AuditTolerances",
+    "CaseComparison",
+    "MetricDiff",
+    "RelationCheck",
+    "compare_cases",
+    "compare_relations",
+    "load_audit_tolerances",
     "ClassAnalysis",
     "class_analysis",
     "ArchivedRubric",
