@@ -67,3 +67,30 @@ def live_workers(*, timeout_s: float = 1.0) -> dict[str, list[str]] | None:
         return None
     replies = app.control.inspect(timeout=timeout_s).active_queues() or {}
     return {name: sorted(q.get("name", "?") for q in queues) for name, queues in sorted(replies.items())}
+
+
+def held_tasks(*, timeout_s: float = 2.0) -> tuple[dict[str, set[tuple[int, int]]], dict[str, int]] | None:
+    """Liveness as the broker sees it: per answering worker, the (case_run_id, attempt) of the case runs it is
+    running or holds prefetched; and the messages waiting per queue. None when not knowable (embedded broker, or the
+    broker unreachable): the reconciler then falls back to leases."""
+    from worker.celery_app import RUN_TASK, app
+
+    if str(app.conf.broker_url).startswith("filesystem"):
+        return None
+    try:
+        inspect = app.control.inspect(timeout=timeout_s)
+        active, reserved = inspect.active(), inspect.reserved()
+        depths = queue_depths()
+    except Exception:  # noqa: BLE001 - no broker, no liveness: leases decide
+        return None
+    if active is None or any(d is None for d in depths.values()):
+        return None
+    held: dict[str, set[tuple[int, int]]] = {}
+    for replies in (active, reserved or {}):
+        for worker, tasks in replies.items():
+            mine = held.setdefault(worker, set())
+            for task in tasks:
+                args = task.get("args") or []
+                if task.get("name") == RUN_TASK and len(args) == 2:
+                    mine.add((int(args[0]), int(args[1])))
+    return held, depths

@@ -1,7 +1,11 @@
 """The reconciler: nothing stays lost. Re-sends case runs whose message or worker vanished, and stuck gradings.
 
-- running past its lease (worker crash, machine loss): back to queued with a new attempt number, re-sent;
-- queued longer than queue_lease_s (broker restart lost the message): re-sent with a new attempt number;
+- running, but no live worker holds it (its worker was killed; Celery's remote control says which tasks each live
+  worker holds): back to queued with a new attempt number, re-sent, without waiting for the lease;
+- queued, but its queue is empty on the broker and no worker holds it (a broker restart lost the message):
+  re-sent at once;
+- where liveness is not knowable (the embedded broker, or no broker answer) the leases decide:
+  running past its lease (worker crash, machine loss), or queued longer than queue_lease_s;
 - grading longer than the lease (grade task lost): the grade task is re-sent (grading is exactly-once anyway).
 A new attempt number makes every older message for that case run stale, so a late redelivery never runs twice.
 A rocm/cuda case run with no worker of its kind is simply re-sent to the same queue: never to another backend.
@@ -18,6 +22,9 @@ from sqlalchemy.orm import Session
 from grader.models import CaseRun, Event, Submission, utcnow
 from grader.settings import settings
 
+# A run younger than this is never judged by liveness: its message may be between the broker and a worker.
+LIVENESS_GRACE_S = 10.0
+
 
 @dataclass
 class Resend:
@@ -25,20 +32,60 @@ class Resend:
     gradings: list[int] = field(default_factory=list)
 
 
-def find_and_requeue(*, session: Session, now: datetime | None = None) -> Resend:
-    """Mark what must be re-sent (committed), and return it for the caller to enqueue."""
+def _host(worker_name: str) -> str:
+    return worker_name.split("@", 1)[-1]
+
+
+def orphaned(session: Session, now: datetime, liveness) -> list[tuple[CaseRun, str]]:
+    """Runs no live worker holds, by the broker's answer (`grader.dispatch.held_tasks`), with the reason."""
+    held_by, depths = liveness
+    held = set().union(*held_by.values()) if held_by else set()
+    hosts = {_host(name) for name in held_by}
+    grace = now - timedelta(seconds=LIVENESS_GRACE_S)
+    found = []
+    running = select(CaseRun).where(CaseRun.status == "running", CaseRun.started_at < grace)
+    for run in session.scalars(running.with_for_update(skip_locked=True)).all():
+        # Judged only where the claiming host has a worker that answered: a silent host may be busy, not dead,
+        # and is left to its lease.
+        if (run.id, run.attempt) not in held and run.worker in hosts:
+            found.append((run, f"no live worker holds it (worker {run.worker} pid {run.worker_pid} is gone)"))
+    queued = select(CaseRun).where(CaseRun.status == "queued", CaseRun.queued_at < grace)
+    for run in session.scalars(queued.with_for_update(skip_locked=True)).all():
+        if depths.get(run.backend) == 0 and (run.id, run.attempt) not in held:
+            found.append((run, f"its message is gone (queue {run.backend} is empty and no worker holds it)"))
+    return found
+
+
+def dead_here(session: Session, now: datetime) -> list[tuple[CaseRun, str]]:
+    """Runs claimed on this very host by a process that no longer exists (knowable without any broker)."""
+    from grader.core.lifecycle import HOST, _pid_alive
+
+    running = select(CaseRun).where(CaseRun.status == "running", CaseRun.worker == HOST,
+                                    CaseRun.started_at < now - timedelta(seconds=LIVENESS_GRACE_S))
+    return [(run, f"its process {run.worker_pid} on {HOST} is gone")
+            for run in session.scalars(running.with_for_update(skip_locked=True)).all() if not _pid_alive(run.worker_pid)]
+
+
+def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=None) -> Resend:
+    """Mark what must be re-sent (committed), and return it for the caller to enqueue.
+
+    `liveness` is `grader.dispatch.held_tasks()`'s answer, or None where it is not knowable (leases only)."""
     now = now or utcnow()
     resend = Resend()
     lost = select(CaseRun).where(CaseRun.status == "running", CaseRun.lease_until < now)
     stale = select(CaseRun).where(CaseRun.status == "queued",
                                   CaseRun.queued_at < now - timedelta(seconds=settings.queue_lease_s))
+    todo = orphaned(session, now, liveness) if liveness is not None else []
+    todo += [(run, reason) for run, reason in dead_here(session, now) if run.id not in {r.id for r, _ in todo}]
     for reason, query in (("lease expired", lost), ("message presumed lost", stale)):
-        for run in session.scalars(query.with_for_update(skip_locked=True)).all():
-            run.status, run.attempt, run.queued_at = "queued", run.attempt + 1, utcnow()
-            run.worker = run.worker_pid = run.lease_until = None
-            session.add(Event(submission_id=run.submission_id, case_run_id=run.id, state="requeued",
-                              detail=f"{reason}; attempt {run.attempt} on queue {run.backend}"))
-            resend.case_runs.append((run.id, run.attempt, run.backend))
+        todo += [(run, reason) for run in session.scalars(query.with_for_update(skip_locked=True)).all()
+                 if run.id not in {r.id for r, _ in todo}]
+    for run, reason in todo:
+        run.status, run.attempt, run.queued_at = "queued", run.attempt + 1, utcnow()
+        run.worker = run.worker_pid = run.lease_until = None
+        session.add(Event(submission_id=run.submission_id, case_run_id=run.id, state="requeued",
+                          detail=f"{reason}; attempt {run.attempt} on queue {run.backend}"))
+        resend.case_runs.append((run.id, run.attempt, run.backend))
     stuck = select(Submission).where(Submission.status == "grading",
                                      Submission.grading_at < now - timedelta(seconds=settings.lease_s))
     for submission in session.scalars(stuck).all():

@@ -61,12 +61,13 @@ def worker(queues: tuple[str, ...], loglevel: str) -> None:
 def reconcile(every: float) -> None:
     """Re-send case runs left queued or running past their lease, and stuck gradings."""
     from grader.core.db import new_session
-    from grader.dispatch import resend
+    from grader.dispatch import held_tasks, resend
     from grader.reconcile import find_and_requeue
 
     while True:
+        liveness = held_tasks()  # asked before reading the runs, so a task it reports held is never judged lost
         with new_session() as session:
-            todo = find_and_requeue(session=session)
+            todo = find_and_requeue(session=session, liveness=liveness)
         resend(todo)
         if todo.case_runs or todo.gradings:
             click.echo(f"re-sent {len(todo.case_runs)} case runs, {len(todo.gradings)} gradings")
