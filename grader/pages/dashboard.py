@@ -115,7 +115,7 @@ def _svg(name: str, data: str) -> bytes:
         if name == "backends":
             fig = _draw_backends(Figure(figsize=(9.0, 3.2)), BackendSpread.model_validate_json(data))
         else:
-            fig = _draw_predictions(Figure(figsize=(4.8, 4.4)), PredictionPlot.model_validate_json(data))
+            fig = _draw_predictions(Figure(figsize=(6.6, 4.2)), PredictionPlot.model_validate_json(data))
         out = io.StringIO()
         fig.savefig(out, format="svg", bbox_inches="tight", metadata={"Date": None})
     return out.getvalue().encode()
@@ -159,7 +159,7 @@ def _draw_predictions(fig, plot):
     ax.set_ylim(low, high)
     ax.set_aspect("equal")
     ax.grid(True, lw=0.3)
-    ax.legend(fontsize=7, loc="upper left", frameon=False)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
     left_out = len(plot.rows) - len(points)
     if left_out:
         ax.text(0.99, 0.01, f"{left_out} not plotted (not stopped or not measured): see the table", ha="right",
@@ -191,10 +191,12 @@ def _draw_backends(fig, spread):
             ax.scatter(offsets, ys, marker=marker, color=colour, s=16, alpha=0.8, zorder=3)
             if g.median is not None:
                 ax.hlines(g.median * scale, x - width * 0.4, x + width * 0.4, color=colour, lw=1.5)
-            if g.not_stopped:
-                ax.annotate(f"{g.not_stopped} not stopped", (x, 0), fontsize=6, ha="center", va="bottom",
-                            xycoords=("data", "axes fraction"))
-        ax.set_xticks(range(len(labels)), labels, fontsize=7, rotation=0)
+        ticks = []
+        for label in labels:  # runs without a sustained stop have no distance to plot: the tick label counts them
+            missing = [f"{g.backend} {g.not_stopped}" for g in groups
+                       if g.case + (f"\n{g.lane}" if g.lane else "") == label and g.not_stopped]
+            ticks.append(label.replace("sheet.", "sheet.\n") + (f"\nnot stopped: {', '.join(missing)}" if missing else ""))
+        ax.set_xticks(range(len(labels)), ticks, fontsize=7)
         ax.set_xlim(-0.6, len(labels) - 0.4)
     for backend in backends:
         marker, colour = BACKEND_STYLE.get(backend, ("x", "#777777"))
