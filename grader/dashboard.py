@@ -15,7 +15,7 @@ from datetime import datetime, timedelta
 from typing import Any, Literal
 
 from pydantic import BaseModel
-from sqlalchemy import select
+from sqlalchemy import null, select
 from sqlalchemy.orm import Session
 
 from grader.models import CaseRun, Course, Event, Grade, Submission, User, utcnow
@@ -194,7 +194,8 @@ def resend_case_run(*, session: Session, case_run_id: int, user: User) -> CaseRu
     run.status, run.attempt, run.tries, run.queued_at = "queued", run.attempt + 1, 0, now
     run.worker = run.worker_pid = run.lease_until = run.started_at = run.finished_at = None
     run.result_status = run.error = run.stderr_tail = run.wall_s = run.actual_backend = None
-    run.provenance = run.metrics = run.artifact_dir = run.measurement_id = run.reused_from_id = None
+    run.artifact_dir = run.measurement_id = run.reused_from_id = None
+    run.provenance = run.metrics = null()  # SQL NULL, as before the first run (None would store JSON 'null')
     session.add(Event(submission_id=submission.id, case_run_id=run.id, state="resent",
                       detail=f"resent by {user.role} {user.name}: was {was} ({old}): {previous}; "
                              f"attempt {run.attempt} on queue {run.backend}"))
@@ -307,7 +308,7 @@ def backend_spread(session: Session, course: Course) -> BackendSpread:
             continue
         seen.add(origin)
         backend = run.actual_backend or "unknown"
-        metrics = run.metrics
+        metrics = run.metrics or {}  # a JSON 'null' is not SQL NULL: the query above lets it through
         if metrics.get("kind") == "contact":
             values.setdefault(("penetration_proxy", run.name, None, backend), []).append(metrics["penetration_proxy"])
         elif metrics.get("kind") == "friction":

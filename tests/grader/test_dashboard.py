@@ -49,7 +49,8 @@ def test_only_an_instructor_of_the_course_resends_and_only_a_failed_or_stuck_run
     runs = _runs(submission)
     failed, queued = runs["N1"], runs["N2"]
     _set(failed.id, status="failed", result_status="timeout", error="case process timed out after 600 s",
-         tries=1, finished_at=utcnow(), artifact_dir="/artifacts/case-runs/1/try-1")
+         tries=1, finished_at=utcnow(), artifact_dir="/artifacts/case-runs/1/try-1", provenance={"mode": "warm"},
+         metrics={"kind": "contact"})
     for who, code in (("alice", 403), ("bob", 404), ("tess", 403), ("eve", 404)):
         response = _resend(api, failed.id, who)
         assert response.status_code == code, (who, response.text)
@@ -63,6 +64,9 @@ def test_only_an_instructor_of_the_course_resends_and_only_a_failed_or_stuck_run
     body = response.json()
     assert (body["status"], body["attempt"], body["tries"], body["error"]) == ("queued", 2, 0, None)
     assert api.sent == sent_before + [(failed.id, 2, "cpu")]  # its own backend's queue, the new attempt
+    with _session() as session:  # back to "never measured": SQL NULL, not a stored JSON null
+        assert session.scalar(select(CaseRun.id).where(CaseRun.id == failed.id, CaseRun.metrics.is_(None),
+                                                       CaseRun.provenance.is_(None))) == failed.id
     events = api.client.get(f"/v1/submissions/{submission}/events", headers=api.as_("prof")).json()
     resent = [e for e in events if e["state"] == "resent"]
     assert len(resent) == 1 and resent[0]["case_run_id"] == failed.id
