@@ -317,8 +317,9 @@ def backend_spread(session: Session, course: Course) -> BackendSpread:
                 values.setdefault(("stop_distance", run.name, lane_name, backend), []).append(
                     stop["distance"] if stop["stopped"] else None)
     groups = []
-    for (metric, case, lane, backend), found in sorted(values.items(), key=lambda kv: (kv[0][0], _case_order(kv[0][1]),
-                                                                                       kv[0][2] or "", kv[0][3])):
+    lanes = {None: 0, "low": 1, "high": 2}
+    for (metric, case, lane, backend), found in sorted(values.items(), key=lambda kv: (
+            kv[0][0], _case_order(kv[0][1]), lanes.get(kv[0][2], 3), kv[0][2] or "", kv[0][3])):
         numbers = sorted(v for v in found if v is not None)
         groups.append(MeasurementGroup(
             metric=metric, case=case, lane=lane, backend=backend, unit="m", values=numbers,

@@ -113,7 +113,7 @@ def _svg(name: str, data: str) -> bytes:
 
     with _DRAWING, matplotlib.rc_context({"svg.fonttype": "none", "font.size": 9, "svg.hashsalt": "dashboard"}):
         if name == "backends":
-            fig = _draw_backends(Figure(figsize=(9.0, 3.2)), BackendSpread.model_validate_json(data))
+            fig = _draw_backends(Figure(figsize=(10.0, 3.4)), BackendSpread.model_validate_json(data))
         else:
             fig = _draw_predictions(Figure(figsize=(6.6, 4.2)), PredictionPlot.model_validate_json(data))
         out = io.StringIO()
@@ -167,11 +167,17 @@ def _draw_predictions(fig, plot):
     return fig
 
 
+def _short(case: str) -> str:
+    """A case name that fits under a tick: the lesson's friction cases lose their common prefix, long names wrap."""
+    name = case.removeprefix("friction-").replace("sheet.", "sheet.\n").replace("-colors-swapped", "\ncolors-swapped")
+    return name
+
+
 def _draw_backends(fig, spread):
     panels = (("penetration_proxy", "penetration proxy per contact case (mm)", 1000.0),
               ("stop_distance", "stop distance per friction lane (m)", 1.0))
     backends = sorted({g.backend for g in spread.groups})
-    axes = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1, 1.3]})
+    axes = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1, 1.6]})
     for ax, (metric, title, scale) in zip(axes, panels):
         groups = [g for g in spread.groups if g.metric == metric]
         labels = list(dict.fromkeys(g.case + (f"\n{g.lane}" if g.lane else "") for g in groups))
@@ -195,9 +201,10 @@ def _draw_backends(fig, spread):
         for label in labels:  # runs without a sustained stop have no distance to plot: the tick label counts them
             missing = [f"{g.backend} {g.not_stopped}" for g in groups
                        if g.case + (f"\n{g.lane}" if g.lane else "") == label and g.not_stopped]
-            ticks.append(label.replace("sheet.", "sheet.\n") + (f"\nnot stopped: {', '.join(missing)}" if missing else ""))
+            ticks.append(_short(label) + (f"\nnot stopped: {', '.join(missing)}" if missing else ""))
         ax.set_xticks(range(len(labels)), ticks, fontsize=7)
         ax.set_xlim(-0.6, len(labels) - 0.4)
+        ax.margins(y=0.12)
     for backend in backends:
         marker, colour = BACKEND_STYLE.get(backend, ("x", "#777777"))
         axes[1].scatter([], [], marker=marker, color=colour, label=backend)
