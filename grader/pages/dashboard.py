@@ -209,6 +209,7 @@ def _draw_backends(fig, spread):
         marker, colour = BACKEND_STYLE.get(backend, ("x", "#777777"))
         axes[1].scatter([], [], marker=marker, color=colour, label=backend)
     if backends:
-        axes[1].legend(title="actual backend (bar: median)", fontsize=7, title_fontsize=7, frameon=False, loc="best")
+        axes[1].legend(title="actual backend\n(bar: median)", fontsize=7, title_fontsize=7, frameon=False,
+                       loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the axes: never over a marker
     fig.tight_layout()
     return fig
