@@ -16,7 +16,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel
 from sqlalchemy import null, select
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, selectinload
 
 from grader.models import CaseRun, Course, Event, Grade, Submission, User, utcnow
 from grader.settings import settings
@@ -296,25 +296,28 @@ def predictions(course: Course, graded: list[tuple[Submission, Any]]) -> list[Pr
 def backend_spread(session: Session, course: Course) -> BackendSpread:
     """Penetration proxy per contact case and stop distance per friction lane, grouped by the backend that produced
     them (the case run's actual_backend). A measurement reused by several runs counts once."""
-    runs = session.scalars(select(CaseRun).join(Submission, CaseRun.submission_id == Submission.id).where(
-        Submission.course_id == course.id, CaseRun.status == "done", CaseRun.metrics.is_not(None))
+    # Only the columns read here: a case run's provenance (captured output and all) is far larger than its metrics.
+    runs = session.execute(
+        select(CaseRun.id, CaseRun.name, CaseRun.actual_backend, CaseRun.measurement_id, CaseRun.metrics)
+        .join(Submission, CaseRun.submission_id == Submission.id)
+        .where(Submission.course_id == course.id, CaseRun.status == "done", CaseRun.metrics.is_not(None))
         .order_by(CaseRun.id)).all()
     seen: set[tuple] = set()
     values: dict[tuple[str, str, str | None, str], list[float | None]] = {}
-    for run in runs:
+    for run_id, name, actual_backend, measurement_id, metrics in runs:
         # The measurement a run stands on: its own, or the one it reused (the same stored numbers).
-        origin = ("measurement", run.measurement_id) if run.measurement_id else ("run", run.id)
+        origin = ("measurement", measurement_id) if measurement_id else ("run", run_id)
         if origin in seen:
             continue
         seen.add(origin)
-        backend = run.actual_backend or "unknown"
-        metrics = run.metrics or {}  # a JSON 'null' is not SQL NULL: the query above lets it through
+        backend = actual_backend or "unknown"
+        metrics = metrics or {}  # a JSON 'null' is not SQL NULL: the query above lets it through
         if metrics.get("kind") == "contact":
-            values.setdefault(("penetration_proxy", run.name, None, backend), []).append(metrics["penetration_proxy"])
+            values.setdefault(("penetration_proxy", name, None, backend), []).append(metrics["penetration_proxy"])
         elif metrics.get("kind") == "friction":
             for lane_name, lane in metrics.get("lanes", {}).items():
                 stop = lane["stop"]
-                values.setdefault(("stop_distance", run.name, lane_name, backend), []).append(
+                values.setdefault(("stop_distance", name, lane_name, backend), []).append(
                     stop["distance"] if stop["stopped"] else None)
     groups = []
     lanes = {None: 0, "low": 1, "high": 2}
@@ -349,7 +352,7 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
 
     now = utcnow()
     submissions = session.scalars(select(Submission).where(Submission.course_id == course.id)
-                                  .order_by(Submission.id)).all()
+                                  .options(selectinload(Submission.case_runs)).order_by(Submission.id)).all()
     grades = current_grades(session, course_id=course.id)
     latest: dict[int, Submission] = {}
     attempts: Counter[int] = Counter()
