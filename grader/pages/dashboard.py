@@ -17,7 +17,7 @@ from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy import select
 
 from grader.api.deps import SessionDep
-from grader.models import Course
+from grader.models import CaseRun, Course
 from grader.pages.auth import PageUser
 from grader.pages.routes import TEMPLATES, _not_found, _sign_in_redirect
 
@@ -47,7 +47,11 @@ def dashboard_page(request: Request, course: str, session: SessionDep, user: Pag
     row = _staff_course(session, user, course)
     if row is None:
         return _not_found(request, user, f"dashboard for course {course}")
-    message = f"Case run {resent} was re-sent: it is queued again with a new attempt." if resent else None
+    message = None
+    run = session.get(CaseRun, resent) if resent and 0 < resent < 2**63 else None
+    if run is not None and run.submission.course_id == row.id:  # say what is true now, not what the URL claims
+        message = (f"Case run {run.id} ({run.name} of submission {run.submission_id}) was re-sent: "
+                   f"now {run.status}, attempt {run.attempt} on the {run.backend} queue.")
     return _page(request, session, user, row, message=message)
 
 

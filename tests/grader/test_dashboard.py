@@ -128,7 +128,8 @@ def test_the_dashboard_page_resends_with_a_post_form(api):
     assert done.status_code == 303 and done.headers["location"].startswith(f"/courses/l03/dashboard?resent={run.id}")
     assert _runs(submission)["N2"].status == "queued"
     shown = api.client.get(done.headers["location"])
-    assert f"Case run {run.id} was re-sent" in shown.text and form not in shown.text
+    assert f"Case run {run.id} (N2 of submission {submission}) was re-sent: now queued, attempt 2" in shown.text
+    assert form not in shown.text
     refused = api.client.post(f"/courses/l03/dashboard/case-runs/{run.id}/resend", follow_redirects=False)
     assert refused.status_code == 409 and "neither failed nor stuck" in refused.text
     api.client.cookies.clear()

@@ -166,9 +166,9 @@ def test_a_failed_and_a_stuck_run_are_resent_from_the_dashboard_and_graded(brows
 
     page.click(f"#problem-{failing} button.resend")
     page.wait_for_selector("p.notice-ok")
-    assert f"Case run {failing} was re-sent" in page.inner_text("p.notice-ok")
+    assert f"Case run {failing} (N3 of submission {submission_id}) was re-sent" in page.inner_text("p.notice-ok")
     page.click(f"#problem-{stuck} button.resend")
-    page.wait_for_selector("p.notice-ok")
+    page.wait_for_selector(f"p.notice-ok:has-text('Case run {stuck} (N4 of submission {submission_id})')")
     final = carol.wait(submission_id, poll_s=0.5, timeout_s=WAIT_LIMIT_S)
     assert final["status"] == "graded", final
     after = {r.id: r for r in case_runs(stack, submission_id)}
