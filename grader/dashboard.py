@@ -110,16 +110,14 @@ class Dashboard(BaseModel):
     backends: BackendSpread
 
 
-# --- grades: every Grade query of this module goes through these two helpers -------------------------------------
+# --- grades: every Grade query of this module goes through current_grades / current_grade ------------------------
 
 def current_grades(session: Session, *, course_id: int) -> dict[int, Grade]:
-    """The grade each graded submission of a course stands on, by submission id."""
-    query = select(Grade).join(Submission, Grade.submission_id == Submission.id).where(Submission.course_id == course_id)
+    """The grade each graded submission of a course stands on (not superseded by a regrade), by submission id.
+    One submission's is grader.core.rubrics.current_grade."""
+    query = (select(Grade).join(Submission, Grade.submission_id == Submission.id)
+             .where(Submission.course_id == course_id, Grade.superseded_at.is_(None)))
     return {g.submission_id: g for g in session.scalars(query)}
-
-
-def current_grade(session: Session, submission_id: int) -> Grade | None:
-    return session.scalar(select(Grade).where(Grade.submission_id == submission_id))
 
 
 def latest_graded(session: Session, course: Course) -> list[tuple[Submission, Grade]]:
@@ -148,10 +146,11 @@ def _not_resendable(run: CaseRun, submission: Submission, has_grade: bool, now: 
     if run.status != "failed" and _stuck(run, now) is None:
         return f"case run {run.id} ({run.name}) is {run.status}, neither failed nor stuck"
     if has_grade:
-        # One grade per submission (grader.models.Grade): a new measurement could not replace the grade that
-        # already counted this run as not measured, so re-sending would change nothing the student sees.
+        # One grade per submission and rubric version (grader.models.Grade), and grading stops at a current grade:
+        # a new measurement could not replace the grade that counted this run as not measured, so re-sending would
+        # change nothing the student sees. (A regrade under a newer version reads whatever is stored then.)
         return (f"submission {submission.id} is already graded with this run counted as not measured; a re-sent "
-                f"run could not change that grade (regrading a graded submission is not supported yet)")
+                f"run could not change that grade (one grade per submission and rubric version)")
     if submission.status == "grading":
         return f"submission {submission.id} is being graded; re-send once its grade is stored"
     return None

@@ -9,7 +9,6 @@ from grader.api import errors
 from grader.api.main import api_router
 from grader.api.routes.health import metrics_router
 from grader.pages import router as pages_router
-from grader.pages.dashboard import router as dashboard_router
 from grader.settings import settings
 
 app = FastAPI(
@@ -23,5 +22,4 @@ errors.install(app, max_bytes=settings.max_body_bytes)
 app.include_router(api_router)
 app.include_router(metrics_router)
 app.include_router(pages_router)
-app.include_router(dashboard_router)
 app.mount("/static", StaticFiles(directory=Path(__file__).resolve().parent / "static"), name="static")

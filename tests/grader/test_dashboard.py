@@ -263,6 +263,26 @@ def test_the_charts_are_svg_for_the_courses_staff_only(api):
     assert b"predicted against measured" in h4.content and b"reviewed tolerance" in h4.content
     cached = api.client.get(urls[1], headers=api.as_("prof") | {"If-None-Match": h4.headers["etag"]})
     assert cached.status_code == 304
-    assert api.client.get("/courses/l03/dashboard/charts/predictions-B2.svg", headers=api.as_("prof")).status_code == 404
+    unknown = api.client.get("/courses/l03/dashboard/charts/predictions-B2.svg", headers=api.as_("prof"))
+    assert unknown.status_code == 404
     page = api.client.get("/courses/l03/dashboard", headers=api.as_("prof")).text
     assert all(f'src="{url}"' in page for url in urls[:2])
+
+
+def test_only_the_current_grade_counts_a_superseded_one_stays_out(api):
+    submission = _submit(api)
+    pairs = {"baseline_low": 0.5, "baseline_high": 0.8, "modified_low": 0.3, "modified_high": 0.8}
+    stops = {f"{run}_{lane}_stop_distance_m": 0.3 for run in ("baseline", "modified") for lane in ("low", "high")}
+    h1 = {"baseline": {"low": 0.5, "high": 0.8}, "modified": {"low": 0.3, "high": 0.8}}
+    old, new = ({run: {lane: {"value": cm, "unit": "cm"} for lane in ("low", "high")} for run in ("baseline", "modified")}
+                for cm in (10.0, 30.0))
+    _grade(submission, _report("alice", h1, new, pairs, stops))
+    with _session() as session:  # the current grade is told by superseded_at, not by which row came last
+        session.add(Grade(submission_id=submission, rubric_lesson="L03", rubric_version="1", rubric_hash="y",
+                          total=0, max_total=2, report=_report("alice", h1, old, pairs, stops, "no_credit"),
+                          superseded_at=utcnow()))
+        session.commit()
+    data = api.client.get("/v1/courses/l03/dashboard", headers=api.as_("prof")).json()
+    h4 = next(p for p in data["predictions"] if p["item"] == "H4")
+    assert {r["predicted_as_written"] for r in h4["rows"]} == {"30 cm"} and len(h4["rows"]) == 4
+    assert data["roster"][0]["total"] == 2 and data["analysis"]["n_reports"] == 1
