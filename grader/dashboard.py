@@ -18,6 +18,7 @@ from pydantic import BaseModel
 from sqlalchemy import null, select
 from sqlalchemy.orm import Session, selectinload
 
+from grader.core.rubrics import current_grade
 from grader.models import CaseRun, Course, Event, Grade, Submission, User, utcnow
 from grader.settings import settings
 
