@@ -2,7 +2,7 @@
 
 from fastapi import APIRouter
 
-from grader.api.routes import audit, courses, exports, files, health, rubrics, submissions
+from grader.api.routes import audit, case_runs, courses, exports, files, health, rubrics, submissions
 
 api_router = APIRouter(prefix="/v1")
 api_router.include_router(health.router)
@@ -12,3 +12,4 @@ api_router.include_router(courses.router)
 api_router.include_router(exports.router)
 api_router.include_router(rubrics.router)
 api_router.include_router(audit.router)
+api_router.include_router(case_runs.router)

@@ -2,11 +2,12 @@
 
 from fastapi import APIRouter
 
-from grader.pages import audit, regrade, routes
+from grader.pages import audit, dashboard, regrade, routes
 
 router = APIRouter()
 router.include_router(routes.router)
 router.include_router(regrade.router)
 router.include_router(audit.router)
+router.include_router(dashboard.router)
 
 __all__ = ["router"]

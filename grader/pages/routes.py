@@ -1,4 +1,5 @@
 """The pages people look at, server-rendered from grader/templates: sign-in, a caller's submissions, one report.
+(The class dashboard's pages are grader.pages.dashboard.)
 
 Same access rules as the API (a student sees their own submissions, instructors and auditors their course's);
 anything a caller may not read is a 404 page that reveals nothing. Every asset is served by this app.
@@ -18,7 +19,7 @@ from grader import crud
 from grader.api.deps import SessionDep
 from grader.api.routes.files import EVIDENCE
 from grader.core.rubrics import current_grade, grade_history
-from grader.models import Course, Grade, Submission
+from grader.models import Grade, Submission
 from grader.pages.auth import PageUser, clear_session_cookie, set_session_cookie
 from grader.pages.views import report_view
 from grader.settings import settings
@@ -146,19 +147,6 @@ def evidence_file(request: Request, submission_id: int, name: str, filename: str
     if path is None or filename not in EVIDENCE or not path.is_file():
         return _not_found(request, user, f"file {filename} of case run {name}")
     return FileResponse(path, media_type=EVIDENCE[filename], filename=f"{submission.id}-{name}-{filename}")
-
-
-@router.get("/courses/{course}/dashboard", response_class=HTMLResponse)
-def dashboard_page(request: Request, course: str, session: SessionDep, user: PageUser):
-    if user is None:
-        return _sign_in_redirect(request)
-    from grader.dashboard import course_dashboard
-
-    row = session.scalar(select(Course).where(Course.name == course))
-    if row is None or row.id != user.course_id or user.role == "student":
-        return _not_found(request, user, f"dashboard for course {course}")
-    return TEMPLATES.TemplateResponse(request, "dashboard.html",
-                                      {"user": user, "d": course_dashboard(session=session, course=row)})
 
 
 @router.get("/courses/{course}/grades.csv")

@@ -33,5 +33,6 @@ def course_submissions(course: str, session: SessionDep, user: CurrentUser):
 
 @router.get("/{course}/dashboard", response_model=Dashboard)
 def dashboard(course: str, session: SessionDep, user: CurrentUser):
-    """The class dashboard's data: states, stuck or failed runs, roster of latest attempts, item analysis."""
+    """The class dashboard's data: states, failed or stuck runs (and whether each may be re-sent), roster of
+    latest attempts, item analysis, predictions against measurements (H1, H4), key measurements per backend."""
     return course_dashboard(session=session, course=staff_course(course, session, user))
