@@ -146,12 +146,6 @@ def _not_resendable(run: CaseRun, submission: Submission, has_grade: bool, now: 
     """Why an instructor may not re-send this run now, or None when they may."""
     if run.status != "failed" and _stuck(run, now) is None:
         return f"case run {run.id} ({run.name}) is {run.status}, neither failed nor stuck"
-    if has_grade:
-        # One grade per submission and rubric version (grader.models.Grade), and grading stops at a current grade:
-        # a new measurement could not replace the grade that counted this run as not measured, so re-sending would
-        # change nothing the student sees. (A regrade under a newer version reads whatever is stored then.)
-        return (f"submission {submission.id} is already graded with this run counted as not measured; a re-sent "
-                f"run could not change that grade (one grade per submission and rubric version)")
     if submission.status == "grading":
         return f"submission {submission.id} is being graded; re-send once its grade is stored"
     return None
@@ -199,7 +193,17 @@ def resend_case_run(*, session: Session, case_run_id: int, user: User) -> CaseRu
     session.add(Event(submission_id=submission.id, case_run_id=run.id, state="resent",
                       detail=f"resent by {user.role} {user.name}: was {was} ({old}): {previous}; "
                              f"attempt {run.attempt} on queue {run.backend}"))
-    if submission.status == "failed":
+    grade = current_grade(session, submission.id)
+    if grade is not None:
+        # The grade that counted this run as not measured is kept in the history, superseded; the submission is
+        # graded again, under the course's version, once the re-sent run finishes (one current grade at a time).
+        grade.superseded_at = now
+        submission.status, submission.updated_at = "running", now
+        session.add(Event(submission_id=submission.id, state="running",
+                          detail=f"case run {run.name} resent by {user.name}: grade {grade.total:g} / "
+                                 f"{grade.max_total:g} (v{grade.rubric_version}) kept in the history, superseded; "
+                                 "graded again when the run finishes"))
+    elif submission.status == "failed":
         previous_error = submission.error
         submission.status, submission.error, submission.updated_at = "running", None, now
         session.add(Event(submission_id=submission.id, state="running",

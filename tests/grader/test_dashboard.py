@@ -102,18 +102,27 @@ def test_a_stuck_run_is_resent_and_a_failed_submission_goes_back_to_running(api)
     assert any(d and "gave up after 4 deliveries" in d and "prof" in d for d in details)
 
 
-def test_a_run_of_a_graded_submission_is_not_resent(api):
+def test_a_failed_run_of_a_graded_submission_is_resent_and_its_grade_kept_superseded(api):
+    from grader.core.rubrics import current_grade, grade_history
+
     submission = _submit(api)
     run = _runs(submission)["N1"]
     _set(run.id, status="failed", error="case process timed out after 600 s")
     _grade(submission, _report("alice", {"baseline": {"low": 0.5, "high": 0.8}, "modified": {"low": 0.3, "high": 0.8}},
                                {"baseline": {"low": "not_stopped", "high": "not_stopped"},
                                 "modified": {"low": "not_stopped", "high": "not_stopped"}}, {}, {}, "not_measured"))
-    refused = _resend(api, run.id)
-    assert refused.status_code == 409 and "already graded" in refused.json()["detail"]
     problem = api.client.get("/v1/courses/l03/dashboard", headers=api.as_("prof")).json()["problems"][0]
-    assert problem["resendable"] is False and "already graded" in problem["not_resendable_because"]
-    assert _runs(submission)["N1"].status == "failed"
+    assert problem["resendable"] is True
+    assert _resend(api, run.id).status_code == 202
+    assert _runs(submission)["N1"].status == "queued"
+    with _session() as session:
+        assert current_grade(session, submission) is None  # graded again once the run finishes
+        history = grade_history(session, submission)
+        assert len(history) == 1 and history[0].superseded_at is not None  # the old grade is kept
+        details = [e.detail for e in session.scalars(select(Event).where(Event.submission_id == submission))]
+    assert any(d and "kept in the history, superseded" in d for d in details)
+    state = api.client.get(f"/v1/submissions/{submission}", headers=api.as_("prof")).json()
+    assert state["status"] == "running"
 
 
 def test_the_dashboard_page_resends_with_a_post_form(api):
