@@ -18,11 +18,11 @@ from pathlib import Path
 
 import click
 
+from grader.reconcile import RECONCILE_EVERY_S
 from grader.settings import settings
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE_SHEET = ROOT / "examples" / "l03" / "reference.yaml"
-RECONCILE_EVERY_S = 30.0
 
 
 def bootstrap() -> dict[str, str]:

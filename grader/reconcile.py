@@ -24,6 +24,9 @@ from grader.settings import settings
 
 # A run younger than this is never judged by liveness: its message may be between the broker and a worker.
 LIVENESS_GRACE_S = 10.0
+# How often the shipped reconcilers pass (embedded service, docker-compose): a killed worker's run is re-queued
+# within about LIVENESS_GRACE_S + RECONCILE_EVERY_S of the kill.
+RECONCILE_EVERY_S = 15.0
 
 
 @dataclass

@@ -111,3 +111,86 @@ def test_rocm_waits_visibly_then_fails_on_a_worker_without_rocm_never_on_cpu(sta
             assert item["verdict"] == "credit", item  # the reference answers, decided without a run
     assert any("failed on rocm: provenance error" in i["feedback"] for i in grade["items"])
     assert grade["total"] == sum(item.points for item in rubric.items if item.kind != "measured") < grade["max_total"]
+
+
+def test_a_whole_worker_killed_mid_case_is_noticed_by_liveness_not_its_lease(stack):
+    """SIGKILL of a whole Celery worker (main process and case processes) mid-case, with the shipped reconciler
+    interval and the stack's 600 s case limit (lease 720 s): the run is re-queued within seconds because no live
+    worker holds it, and the submission is graded once."""
+    from grader.reconcile import LIVENESS_GRACE_S, RECONCILE_EVERY_S
+
+    victim_worker = services.start_worker(stack.env, "cpu", stack.logs / "worker-victim.log")
+    reconciler = subprocess.Popen([sys.executable, "-m", "grader.cli", "reconcile", "--every", str(RECONCILE_EVERY_S)],
+                                  cwd=services.ROOT, env=stack.env, stdout=(stack.logs / "reconciler.log").open("ab"),
+                                  stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        client = stack.client("bob")
+        created = client.submit(reference_sheet() | {"student": "bob"}, force_rerun=True)
+
+        def running_on_victim():
+            pids = set(services.children(victim_worker.pid))
+            for run in case_runs(stack, created["id"]):
+                if run.status == "running" and run.worker_pid in pids:
+                    return run
+            return None
+
+        victim = wait_until(running_on_victim, "a case run held by the victim worker")
+        doomed = [victim_worker.pid, *services.children(victim_worker.pid)]
+        doomed += [grandchild for pid in doomed[1:] for grandchild in services.children(pid)]
+        for pid in doomed:
+            os.kill(pid, signal.SIGKILL)
+        killed_at = utcnow()
+
+        def requeued():
+            return next((e for e in events(stack, created["id"])
+                         if e.case_run_id == victim.id and e.state == "requeued"), None)
+
+        event = wait_until(requeued, "the killed worker's run re-queued", limit_s=120)
+        noticed_s = (event.at - killed_at).total_seconds()
+        print(f"\nre-queued {noticed_s:.1f} s after the SIGKILL: {event.detail}")
+        assert "no live worker holds it" in event.detail or "is gone" in event.detail, event.detail
+        assert noticed_s <= LIVENESS_GRACE_S + RECONCILE_EVERY_S + 5, f"noticed only after {noticed_s:.1f} s"
+        final = client.wait(created["id"], poll_s=0.5, timeout_s=900)
+        assert final["status"] == "graded", final
+        after = {run.id: run for run in case_runs(stack, created["id"])}
+        assert after[victim.id].status == "done" and after[victim.id].attempt == victim.attempt + 1
+        assert all(run.status == "done" for run in after.values())
+        assert grades_of(stack, created["id"]) == 1
+    finally:
+        for proc in (reconciler, victim_worker):
+            services.stop(proc)
+
+
+def test_messages_lost_with_the_broker_are_noticed_at_once(stack):
+    """The cpu queue emptied under queued runs (what a Redis restart without persistence does to them): with the
+    shipped reconciler interval, they are re-sent within seconds, not after the 1800 s queue lease."""
+    from grader.reconcile import LIVENESS_GRACE_S, RECONCILE_EVERY_S
+
+    reconciler = subprocess.Popen([sys.executable, "-m", "grader.cli", "reconcile", "--every", str(RECONCILE_EVERY_S)],
+                                  cwd=services.ROOT, env=stack.env, stdout=(stack.logs / "reconciler.log").open("ab"),
+                                  stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        client = stack.client("alice")
+        created = client.submit(reference_sheet(), force_rerun=True)
+        wait_until(lambda: any(r.status == "running" for r in case_runs(stack, created["id"])), "a run started")
+        purge = "from worker.celery_app import app; print(app.connection_for_write().default_channel.queue_purge('cpu'))"
+        purged = subprocess.run([sys.executable, "-c", purge], env=stack.env, cwd=services.ROOT, capture_output=True,
+                                text=True, check=True, timeout=60)
+        lost_at = utcnow()
+        assert int(purged.stdout.strip() or 0) >= 1, "nothing was queued to lose"
+        lost = {r.id for r in case_runs(stack, created["id"]) if r.status == "queued"}
+
+        def resent():
+            return [e for e in events(stack, created["id"]) if e.case_run_id in lost and e.state == "requeued"]
+
+        found = wait_until(lambda: len(resent()) >= 1, "a lost message re-sent", limit_s=120) and resent()
+        first_s = (min(e.at for e in found) - lost_at).total_seconds()
+        print(f"\n{len(lost)} queued runs lost with the queue; first re-sent after {first_s:.1f} s: {found[0].detail}")
+        assert "its message is gone" in found[0].detail
+        assert first_s <= LIVENESS_GRACE_S + RECONCILE_EVERY_S + 5
+        final = client.wait(created["id"], poll_s=0.5, timeout_s=900)
+        assert final["status"] == "graded", final
+        assert all(run.status == "done" for run in case_runs(stack, created["id"]))
+        assert grades_of(stack, created["id"]) == 1
+    finally:
+        services.stop(reconciler)
