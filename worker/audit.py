@@ -102,12 +102,41 @@ def _entry(session: Session, left: CaseRun, right: CaseRun, *, requested_by_id: 
                   if r.status != "done" or r.result_status != "ok"]
         return _add(session, AuditEntry(**base, classification="not_compared", comparison=None,
                                         summary="not compared: " + "; ".join(failed)))
-    comparison = compare_cases(a, b)
+    comparison = with_set_relations(compare_cases(a, b), *(_variant_set(session, r) for r in (left, right)))
     folder = Path(settings.artifacts_dir) / "audit" / f"{left.id}-{right.id}-{right.attempt}"
     figures = _draw(a, b, comparison, folder)
     return _add(session, AuditEntry(**base | {"figures": figures}, classification=comparison.classification,
                                     summary=comparison.summary, comparison=comparison.model_dump(mode="json"),
                                     figures_dir=str(folder)))
+
+
+def _variant_set(session: Session, run: CaseRun) -> dict:
+    """Every measured case of `run`'s submission in `run`'s variant, by lesson case name (an audit re-run stands for
+    the case it re-measures), so the lesson's relations between cases can be judged on each side."""
+    submission = run.submission
+    wanted, found = variant(run), {}
+    for other in submission.case_runs:
+        if other.status == "done" and other.result_status == "ok" and variant(other) == wanted:
+            found[other.name] = other
+    for other in submission.audit_runs:
+        source = session.get(CaseRun, other.source_case_run_id) if other.source_case_run_id else None
+        if source is not None and other.status == "done" and other.result_status == "ok" and variant(other) == wanted:
+            found[source.name] = other
+    return {name: stored_result(r) for name, r in found.items()}
+
+
+def with_set_relations(comparison, left: dict, right: dict):
+    """The comparison with the lesson's relations between cases that both variants can now judge (rubric.discrepancy
+    compare_relations) added; a relation that changed makes the entry relation_changed."""
+    from rubric.discrepancy import compare_relations, summarize
+
+    extra = [r for r in compare_relations(left, right) if r.id not in {x.id for x in comparison.relations}]
+    if not extra:
+        return comparison
+    relations = [*comparison.relations, *extra]
+    classification = "relation_changed" if any(r.changed for r in relations) else comparison.classification
+    updated = comparison.model_copy(update={"relations": relations, "classification": classification})
+    return updated.model_copy(update={"summary": summarize(updated)})
 
 
 def _violation_entry(session: Session, run: CaseRun, reason: str | None) -> AuditEntry:

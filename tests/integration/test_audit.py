@@ -64,13 +64,19 @@ def test_isolated_against_warm_for_n1_to_n4_is_identical(stack, source_runs):
         assert response.status_code == 202, response.text
         assert response.json()["purpose"] == "audit"
         requested[name] = response.json()["id"]
+    relations = {}
     for name, run_id in requested.items():
         entry = _entry_for(stack, run_id)
+        relations |= {r["id"]: r for r in entry["comparison"]["relations"]}
         assert (entry["left_variant"], entry["right_variant"]) == ("cpu/32/warm", "cpu/32/isolated"), entry
         assert entry["classification"] == "identical", (name, entry["summary"])
         assert all(a["max_abs"] == 0 for a in entry["comparison"]["arrays"]), name
         assert entry["left_provenance"]["execution_mode"] == "warm"
         assert entry["right_provenance"]["execution_mode"] == "isolated"
+    # The lesson's relations between cases, judged on each side once both variants hold the cases they need.
+    for relation in ("substeps_lower_proxy.N1_N2", "substeps_lower_proxy.N3_N4", "n1_n4_agree"):
+        assert relations[relation]["left"] is relations[relation]["right"] is True, relations.get(relation)
+        assert relations[relation]["changed"] is False
 
 
 def test_precision_64_against_32_on_the_cpu_differs_and_is_classified_with_figures(browser, stack, source_runs):
