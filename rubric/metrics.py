@@ -218,9 +218,8 @@ def tumble_angle_deg(width: float, height: float) -> float:
 
 
 # One sentence for a student, shown wherever a tumbled lane is marked (figures, report page).
-TUMBLE_EXPLANATION = ("This cube tipped over onto another face while it moved, so part of its travel was tumbling, "
-                      "not sliding: its stop distance is not a sliding stop and cannot be compared with friction "
-                      "alone.")
+TUMBLE_EXPLANATION = ("A cube that tipped over onto another face travelled partly by tumbling, not sliding, so its "
+                      "stop distance is not a sliding stop and cannot be compared with friction alone.")
 
 
 def tumbled(max_tilt_deg: float, *, width: float, height: float) -> bool:

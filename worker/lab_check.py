@@ -41,12 +41,13 @@ def _service_notes(lab: Mapping[str, CaseResult], reused: Mapping[str, int]) -> 
     notes = {}
     names = [n for n in lab if n in reused]
     own = [n for n in lab if n not in reused]
-    notes["processes"] = (
-        "Service run: the grading worker ran these cases in its case processes"
-        + (f" ({', '.join(own)} for this submission)" if own else "")
-        + (f"; {', '.join(f'{n} reused the identical measurement of case run {reused[n]}' for n in names)}, so its "
-           "line reports the process that produced those numbers" if names else "")
-        + ".")
+    parts = []
+    if own:
+        parts.append(f"{', '.join(own)} ran in the grading worker's case processes for this submission")
+    if names:
+        parts.append(f"{', '.join(f'{n} (case run {reused[n]})' for n in names)} reused identical earlier "
+                     "measurements, so their lines report the processes that produced those numbers")
+    notes["processes"] = "Service run: " + ("; ".join(parts) or "no check case was run") + "."
     if lab and not any(r.spec.render for r in lab.values()):
         notes["rendering"] = ("Service run: the grading service runs the lesson cases with rendering off, so this "
                               "condition checks only the disabled branch (explicit empty frames and a rendering SKIP); "

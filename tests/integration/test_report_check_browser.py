@@ -8,7 +8,8 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.models import Grade
-from tests.integration.helpers import SHOTS, case_runs, signed_in
+from tests.factories import reference_sheet
+from tests.integration.helpers import SHOTS, case_runs, signed_in, submit_and_wait
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -84,3 +85,28 @@ def test_a_grade_stored_before_the_lab_check_says_so(browser, stack, graded):
             grade.report = {**grade.report, "check": saved}
             flag_modified(grade, "report")
             session.commit()
+
+
+def test_a_lane_whose_cube_tumbles_is_marked_with_why_its_stop_is_not_a_sliding_stop(browser, stack, graded):
+    """Bob's table exercise raises table friction to 0.90 (one factor): on the pinned engine the cubes then pitch over
+    their front edge (tests/worker/test_case_process.py), and the page and the figure must say so in words."""
+    from rubric.metrics import TUMBLE_EXPLANATION
+
+    sheet = reference_sheet() | {"student": "bob"}
+    sheet["configs"]["table_exercise"]["table"]["friction"] = 0.90
+    _, final = submit_and_wait(stack, sheet, who="bob")
+    assert final["status"] == "graded", final
+    run = next(r for r in case_runs(stack, final["id"]) if r.name == "sheet.table_exercise")
+    lanes = run.metrics["lanes"]
+    assert any(lane["tumbled"] for lane in lanes.values()), lanes
+    page = signed_in(browser, stack, "bob")
+    page.goto(f"{stack.url}/submissions/{final['id']}")
+    for name, lane in lanes.items():
+        row = page.locator(f"[id='lane-sheet.table_exercise-{name}']").inner_text()
+        assert ("TUMBLED" in row and "not a sliding stop" in row) is lane["tumbled"], (name, row)
+    assert TUMBLE_EXPLANATION in page.locator("#lanes .tumble-note").inner_text()
+    images = page.locator("#figures img")
+    alts = [images.nth(i).get_attribute("alt") for i in range(images.count())]
+    assert "friction_sheet.table_exercise.png" in alts
+    page.locator("#lanes").scroll_into_view_if_needed()
+    page.screenshot(path=SHOTS / "student_report_tumbled_lane.png", full_page=False)

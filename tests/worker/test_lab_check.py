@@ -36,7 +36,9 @@ def test_a_submission_with_every_check_case_passes_and_says_what_each_condition_
     assert outcome.verdict_line == verdict_line(True) == "L03 CHECK: PASSED"
     # Evaluated on the check's cases only: the colour-swapped control and N5 are graded, not lab-check cases.
     assert list(outcome.backends) == list(CHECK_CASES)
-    assert "N1 reused the identical measurement of case run 7" in _condition(outcome, "processes").evidence
+    processes = _condition(outcome, "processes").evidence
+    assert "Service run: N2, N3, N4, friction-baseline, friction-table-0.30 ran in the grading worker's" in processes
+    assert "N1 (case run 7) reused identical earlier measurements" in processes
     assert "only the disabled branch" in _condition(outcome, "rendering").evidence
     outputs = _condition(outcome, "outputs").evidence
     assert f"6 .npz and {len(figures)} .png files under ARTIFACTS_DIR" in outputs
@@ -78,3 +80,9 @@ def test_a_missing_check_case_is_reported_not_run(measured, figures, tmp_path_fa
     assert not outcome.passed
     assert [c.id for c in outcome.conditions if not c.passed] == ["table_friction_change"]
     assert "friction-table-0.30" in _condition(outcome, "table_friction_change").evidence
+
+
+def test_the_lab_check_of_a_grade_never_imports_genesis_or_torch():
+    from tests.factories import heavy_imports
+
+    assert heavy_imports(["worker.lab_check", "worker.grading"]) == []
