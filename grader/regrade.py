@@ -16,9 +16,11 @@ from pydantic import BaseModel
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from grader.core.lab_check import lab_check
 from grader.core.lifecycle import stored_result
 from grader.core.rubrics import course_version, get_version
 from grader.models import Course, Grade, Regrade, Submission, User, utcnow
+from grader.settings import settings
 
 
 class ItemDiff(BaseModel):
@@ -124,6 +126,12 @@ def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric):
                                                  f"submission: {', '.join(missing)}"), None
         results = {run.name: stored_result(run) for run in submission.case_runs}
         new = rubric.grade_sheet(sheet, results, new_rubric)
+        folder = settings.figures_dir(submission.id)
+        figures = sorted(folder.glob("*.png")) if folder.is_dir() else []
+        reused = {run.name: run.reused_from_id for run in submission.case_runs if run.reused_from_id}
+        check, _ = lab_check(results, figures=figures, rubric=new_rubric, reused=reused,
+                             artifacts_dir=settings.artifacts_dir)
+        new = new.model_copy(update={"check": check})
     except Exception as exc:  # one submission that cannot be regraded must not hide the others
         return RegradeEntry(**entry, skipped=f"regrading failed: {type(exc).__name__}: {exc}"), None
     old = rubric.GradeReport.model_validate(grade.report)

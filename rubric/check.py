@@ -69,6 +69,17 @@ class _Tolerances:
         return f"{t.value:g} {t.unit}, '{name}' of rubric {self.rubric.lesson} v{self.rubric.version}"
 
 
+class CheckOutcome(BaseModel):
+    """What is stored with a grade: the verdict line exactly as `verdict_line` writes it, every condition with its
+    evidence, the rubric version whose tolerances judged them, and the cases (with backends) it was evaluated on."""
+
+    passed: bool
+    verdict_line: str
+    conditions: list[Condition]
+    rubric_version: str
+    backends: dict[str, str] = {}
+
+
 class CheckReport(BaseModel):
     passed: bool
     conditions: list[Condition]
@@ -84,6 +95,18 @@ class CheckReport(BaseModel):
 
     def verdict_line(self) -> str:
         return verdict_line(self.passed)
+
+    def outcome(self, notes: dict[str, str] | None = None) -> CheckOutcome:
+        """The stored form. `notes` (condition id -> text) are appended to that condition's evidence: what the
+        condition means where the check ran (a grading service rather than a local lab run), never a verdict."""
+        notes = notes or {}
+        unknown = set(notes) - {c.id for c in self.conditions}
+        if unknown:
+            raise KeyError(f"notes for unknown conditions: {sorted(unknown)}")
+        conditions = [c.model_copy(update={"evidence": c.evidence + ("\n" + notes[c.id] if c.id in notes else "")})
+                      for c in self.conditions]
+        return CheckOutcome(passed=self.passed, verdict_line=verdict_line(self.passed, [c.title for c in self.failed]),
+                            conditions=conditions, rubric_version=self.rubric_version, backends=self.backends)
 
     def render_text(self) -> str:
         lines = []
@@ -304,10 +327,15 @@ def _multi_evidence(contact) -> Condition:
 
 def _lane_line(m: LaneMetrics) -> str:
     stop = f"stops after {m.stop.distance:.4f} m at t={m.stop.time:.2f} s" if m.stop.stopped else m.stop.detail
+    if m.max_tilt_deg is None:
+        tilt = "; tilt not recorded"
+    else:
+        tilt = f"; max tilt {m.max_tilt_deg:.1f} deg" + (" (TUMBLED onto another face: not a sliding stop)"
+                                                           if m.tumbled else "")
     agree = "" if m.pair_friction_agrees else f" DISAGREES with the pair rule's {m.pair_friction_rule:g}"
     pair = "none (no contact reported)" if m.pair_friction is None else f"{m.pair_friction:g}"
     return (f"{m.case} / {m.lane}: table {m.table_friction:g}, cube {m.cube_friction:g} -> engine pair "
-            f"{pair}{agree}; {stop}; max |omega| {m.max_abs_omega:.2f} rad/s"
+            f"{pair}{agree}; {stop}; max |omega| {m.max_abs_omega:.2f} rad/s{tilt}"
             + ("" if m.stayed_on_table else "; LEFT THE TABLE"))
 
 

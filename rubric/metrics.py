@@ -82,6 +82,11 @@ class LaneMetrics(BaseModel):
     final_displacement: float
     max_abs_omega: float
     stayed_on_table: bool
+    # Largest angle (degrees) between the cube's own z axis and vertical over the measurement window, and whether it
+    # passed the tip-over angle (tumble_angle_deg): the cube then fell onto another face, so part of its travel was
+    # tumbling, not sliding. None for metrics stored before lane orientations were recorded (runner version < 3).
+    max_tilt_deg: float | None = None
+    tumbled: bool | None = None
 
 
 def _ticks(t: np.ndarray) -> np.ndarray:
@@ -201,6 +206,27 @@ def sustained_stop(t: np.ndarray, x: np.ndarray, vx: np.ndarray, *, stop_speed: 
     return Stop(stopped=False, detail=f"not stopped within the measured window (0 to {t[-1]:.2f} s)")
 
 
+def tumble_angle_deg(width: float, height: float) -> float:
+    """The tilt (degrees) past which a box resting on a face tips over onto the neighbouring face.
+
+    A box tipping about one bottom edge is in balance when its centre of mass is straight above that edge: the tilt
+    is then atan((width / 2) / (height / 2)). Below it, gravity's torque about the edge pulls the box back onto its
+    face (it rocks); past it, the same torque carries it over onto the next face (it tumbles). For the lesson's cube
+    (width = height) this is 45 degrees. It follows from the geometry alone, not from any measured run.
+    """
+    return math.degrees(math.atan2(width / 2, height / 2))
+
+
+# One sentence for a student, shown wherever a tumbled lane is marked (figures, report page).
+TUMBLE_EXPLANATION = ("A cube that tipped over onto another face travelled partly by tumbling, not sliding, so its "
+                      "stop distance is not a sliding stop and cannot be compared with friction alone.")
+
+
+def tumbled(max_tilt_deg: float, *, width: float, height: float) -> bool:
+    """Whether a box that tipped up to max_tilt_deg went past its tip-over angle, i.e. fell onto another face."""
+    return max_tilt_deg > tumble_angle_deg(width, height)
+
+
 # float32 engine values vs the float64 rule: 0.3 is stored as 0.30000001.
 PAIR_FRICTION_MATCH = 1e-6
 
@@ -215,6 +241,10 @@ def lane_metrics(spec: FrictionCase, arrays: dict[str, np.ndarray], lane: str) -
     values = sorted({round(float(v), 7) for v in arrays[f"{lane}_contact_friction"][in_contact]})
     table_mu, cube_mu = float(arrays[f"{lane}_table_friction"]), float(arrays[f"{lane}_cube_friction"])
     rule = effective_pair_friction(table_mu, cube_mu)
+    quat = arrays.get(f"{lane}_quat")  # absent only from arrays recorded before runner version 3
+    # tilt() folds to 0..90 degrees; a cube that tips past 45 degrees reaches 90 on its way onto the next face, and the
+    # 0.01 s samples cannot step over the 45..90 degree band (that would need over 78 rad/s about a horizontal axis).
+    max_tilt = float(np.degrees(tilt(quat).max())) if quat is not None else None
     return LaneMetrics(
         case=spec.name,
         lane=lane,
@@ -230,6 +260,8 @@ def lane_metrics(spec: FrictionCase, arrays: dict[str, np.ndarray], lane: str) -
         max_abs_omega=float(np.max(np.linalg.norm(arrays[f"{lane}_omega"], axis=1))),
         # Centre over the table and not fallen below its top: the lane's geometry held for the whole run.
         stayed_on_table=bool(on_x.all() and (z > spec.table.top_z).all()),
+        max_tilt_deg=max_tilt,
+        tumbled=None if max_tilt is None else tumbled(max_tilt, width=spec.cube_size, height=spec.cube_size),
     )
 
 

@@ -17,7 +17,7 @@ from .metrics import ContactMetrics, FrictionMetrics
 from .specs import ContactCase, FrictionCase
 
 # Bumped whenever the arrays or provenance a case writes change: measurements of another version are not reused.
-RUNNER_VERSION = "2"
+RUNNER_VERSION = "3"
 
 Status = Literal["ok", "failed", "invalid", "timeout"]
 
@@ -135,6 +135,8 @@ def expected_arrays(spec: ContactCase | FrictionCase) -> dict[str, tuple[tuple[i
                 f"{p}_z": ((n,), "f"),
                 f"{p}_vx": ((n,), "f"),
                 f"{p}_omega": ((n, 3), "f"),
+                # Orientation quaternion (w, x, y, z): whether the cube tipped over onto another face.
+                f"{p}_quat": ((n, 4), "f"),
                 f"{p}_contact_count": ((n,), "i"),
                 # Sliding friction the engine assigned to the lane's cube-table contacts at each sample (0: none).
                 f"{p}_contact_friction": ((n,), "f"),

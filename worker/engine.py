@@ -231,6 +231,8 @@ def simulate_friction(gs, spec: FrictionCase):
         p = lane.name
         out |= {f"{p}_{k}": np.empty(n) for k in ("x", "y", "z", "vx", "contact_friction")}
         out[f"{p}_omega"] = np.empty((n, 3))
+        # Orientation (w, x, y, z) at every sample: whether a lane's cube tipped over is read from it (rubric.metrics).
+        out[f"{p}_quat"] = np.empty((n, 4))
         out[f"{p}_contact_count"] = np.empty(n, dtype=np.int32)
         # Each side's coefficient as the built engine holds it for the geometry, next to the pair value it used.
         out[f"{p}_table_friction"] = np.array(float(table.geoms[0].friction))
@@ -245,6 +247,7 @@ def simulate_friction(gs, spec: FrictionCase):
             out[f"{name}_x"][i], out[f"{name}_y"][i], out[f"{name}_z"][i] = pos[:3]
             out[f"{name}_vx"][i] = vel[0]
             out[f"{name}_omega"][i] = _np(cube.get_ang())
+            out[f"{name}_quat"][i] = _np(cube.get_quat())
             out[f"{name}_contact_count"][i] = int(cube.get_contacts(with_entity=table)["position"].shape[0])
             out[f"{name}_contact_friction"][i] = contact_friction(scene, _geoms(cube), _geoms(table))
 

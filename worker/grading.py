@@ -1,5 +1,6 @@
 """Grade a submission once its last case run finished: the rubric engine on the stored measurements, then the
-lab figures drawn from the same results (never inside an API request).
+lab figures drawn from the same results (never inside an API request), then the lab check (L03 CHECK line) on the
+submission's own runs, stored with the grade.
 
 The worker-side body of the `grade_submission` task; state changes go through grader.core.lifecycle.
 """
@@ -12,6 +13,7 @@ from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
+from grader.core.lab_check import lab_check
 from grader.core.lifecycle import stored_result, touch
 from grader.core.rubrics import course_rubric, current_grade
 from grader.models import Event, Grade, Submission, utcnow
@@ -42,13 +44,18 @@ def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
         session.commit()
         return None
     execution_s = time.perf_counter() - started  # grading itself; drawing the figures is not part of it
-    figures_note = draw_figures(submission.id, results)
+    figures_note, figures = draw_figures(submission.id, results)
+    reused = {run.name: run.reused_from_id for run in submission.case_runs if run.reused_from_id}
+    check, check_note = lab_check(results, figures=figures, rubric=book, reused=reused,
+                                  artifacts_dir=settings.artifacts_dir)
+    report = report.model_copy(update={"check": check})
     grade = Grade(submission_id=submission.id, rubric_lesson=book.lesson, rubric_version=str(book.version),
                   rubric_hash=book.content_hash, total=report.total, max_total=report.max_total,
                   report=report.model_dump(mode="json"), execution_s=execution_s)
     session.add(grade)
     submission.graded_at = utcnow()
     session.add(Event(submission_id=submission.id, state="figures", detail=figures_note))
+    session.add(Event(submission_id=submission.id, state="lab-check", detail=check_note))
     touch(submission, "graded", f"{report.total:g} / {report.max_total:g}", session=session)
     try:
         session.commit()
@@ -58,11 +65,12 @@ def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
     return grade
 
 
-def draw_figures(submission_id: int, results: dict) -> str:
+def draw_figures(submission_id: int, results: dict) -> tuple[str, list]:
     """The lab figures of a submission's results, drawn before its grade is stored so a graded submission has them.
 
     Failed case runs are passed too, so each figure names what it could not draw. A drawing failure never blocks
     or changes the grade: it is recorded (the returned note becomes an event) and the pages show no figures.
+    Returns the note and the paths drawn.
     """
     from worker.figures import lab_figures
 
@@ -70,5 +78,5 @@ def draw_figures(submission_id: int, results: dict) -> str:
     try:
         paths = lab_figures(results, folder)
     except Exception as exc:  # noqa: BLE001 - the evidence of a drawing bug is the event, the grade stands
-        return f"figures failed: {type(exc).__name__}: {exc}"
-    return f"{len(paths)} figures drawn in {folder}"
+        return f"figures failed: {type(exc).__name__}: {exc}", []
+    return f"{len(paths)} figures drawn in {folder}", paths

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from grader.models import CaseRun, Grade, Submission, utcnow
 from grader.settings import settings
+from rubric.metrics import TUMBLE_EXPLANATION, tumble_angle_deg
 
 # A case still running after this long on a fresh worker is most likely compiling Genesis kernels (~100 s once).
 FIRST_RUN_NOTE_AFTER_S = 20.0
@@ -56,6 +57,38 @@ class ItemRow:
 
 
 @dataclass
+class ConditionRow:
+    id: str
+    title: str
+    passed: bool
+    evidence: str
+
+
+@dataclass
+class CheckView:
+    """The lab check stored with the grade: the L03 CHECK line and every condition with its evidence."""
+
+    passed: bool
+    verdict_line: str
+    conditions: list[ConditionRow]
+    rubric_version: str
+
+
+@dataclass
+class LaneRow:
+    """One sliding cube of one friction run, from the run's stored metrics."""
+
+    run: str
+    lane: str
+    table_friction: float
+    cube_friction: float
+    pair_friction: float | None
+    stop: str
+    max_tilt_deg: float | None
+    tumbled: bool | None  # None: orientation not recorded (metrics stored before runner version 3)
+
+
+@dataclass
 class ReportView:
     submission: Submission
     runs: list[RunRow]
@@ -64,8 +97,22 @@ class ReportView:
     parts: list[tuple[str, list[ItemRow]]] = field(default_factory=list)
     config_findings: list[str] = field(default_factory=list)
     figures: list[str] = field(default_factory=list)
-    check_line: str | None = None
+    check: CheckView | None = None
+    lanes: list[LaneRow] = field(default_factory=list)
     first_run_note: bool = False
+
+    @property
+    def tumbled_lanes(self) -> list[LaneRow]:
+        return [lane for lane in self.lanes if lane.tumbled]
+
+    @property
+    def tumble_explanation(self) -> str:
+        return TUMBLE_EXPLANATION
+
+    @property
+    def tumble_angle_deg(self) -> float:
+        """The lesson cube's tip-over angle (a cube: width = height, so 45 degrees)."""
+        return tumble_angle_deg(1.0, 1.0)
 
     @property
     def plots(self) -> list[str]:
@@ -149,7 +196,7 @@ def report_view(submission: Submission, grade: Grade | None) -> ReportView:
                    actual_backend=r.actual_backend, elapsed_s=_elapsed(r, now), error=r.error,
                    reused_from_id=r.reused_from_id, provenance=r.provenance or {}, files=_files(r))
             for r in submission.case_runs]
-    view = ReportView(submission=submission, runs=runs, grade=grade)
+    view = ReportView(submission=submission, runs=runs, grade=grade, lanes=_lanes(submission.case_runs))
     view.first_run_note = any(r.status == "running" and (r.elapsed_s or 0) > FIRST_RUN_NOTE_AFTER_S for r in runs)
     folder = settings.figures_dir(submission.id)
     view.figures = sorted(p.name for p in folder.glob("*.png")) if folder.is_dir() else []
@@ -172,5 +219,33 @@ def report_view(submission: Submission, grade: Grade | None) -> ReportView:
         parts.setdefault(row.part, []).append(row)
     view.parts = list(parts.items())
     view.config_findings = report.get("config_findings", [])
-    view.check_line = report.get("check_line")
+    view.check = _check(report.get("check"))
     return view
+
+
+def _check(stored: dict | None) -> CheckView | None:
+    """The stored check (rubric.check.CheckOutcome as JSON); None for grades stored before it was recorded."""
+    if not stored:
+        return None
+    return CheckView(passed=stored["passed"], verdict_line=stored["verdict_line"],
+                     rubric_version=stored["rubric_version"],
+                     conditions=[ConditionRow(id=c["id"], title=c["title"], passed=c["passed"], evidence=c["evidence"])
+                                 for c in stored["conditions"]])
+
+
+def _lanes(runs: list[CaseRun]) -> list[LaneRow]:
+    """Every lane of every friction run with stored metrics: its stop and whether it tumbled."""
+    rows = []
+    for run in runs:
+        metrics = run.metrics or {}
+        if metrics.get("kind") != "friction":
+            continue
+        for lane in metrics["lanes"].values():
+            stop = lane["stop"]
+            rows.append(LaneRow(
+                run=run.name, lane=lane["lane"], table_friction=lane["table_friction"],
+                cube_friction=lane["cube_friction"], pair_friction=lane["pair_friction"],
+                stop=(f"{stop['distance']:.3f} m at t={stop['time']:.2f} s" if stop["stopped"] else stop["detail"]),
+                max_tilt_deg=lane.get("max_tilt_deg"), tumbled=lane.get("tumbled"),
+            ))
+    return rows

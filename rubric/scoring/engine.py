@@ -20,6 +20,7 @@ from typing import Literal
 from pydantic import BaseModel
 
 from ..cases import BASELINE_CASES, COLOR_SWAP
+from ..check import CheckOutcome
 from ..guards import gradable
 from ..metrics import ContactMetrics, FrictionMetrics, LaneMetrics
 from ..one_factor import ConfigFinding, one_factor_findings
@@ -29,8 +30,11 @@ from ..sheet import PredictionSheet
 
 Verdict = Literal["credit", "no_credit", "inconclusive", "one_factor_violation", "not_measured"]
 SHEET_CASE_PREFIX = "sheet."
-# Lesson cases every sheet is graded on (when the sheet does not replace them with its own config).
-LESSON_RUNS = ("N1", "N2", "N3", "N4", "friction-baseline", COLOR_SWAP)
+# Lesson cases every sheet is graded on (when the sheet does not replace them with its own config). The lab check
+# (rubric.check) needs N1-N4 and both friction runs, so friction-table-0.30 is here although no item reads it: the
+# check stored with each grade is then evaluated on the submission's own runs. Measurements are reused across
+# students by content key (worker/reuse.py), so it costs one friction case once per engine version.
+LESSON_RUNS = ("N1", "N2", "N3", "N4", "friction-baseline", "friction-table-0.30", COLOR_SWAP)
 
 
 class ItemGrade(BaseModel):
@@ -62,6 +66,9 @@ class GradeReport(BaseModel):
     complete: bool  # False when any item could not be measured
     items: list[ItemGrade]
     config_findings: list[str]
+    # The lab check (L03 CHECK line and its conditions) evaluated on the submission's own runs where it was graded;
+    # None for grades stored before it was recorded.
+    check: CheckOutcome | None = None
 
     def item(self, item_id: str) -> ItemGrade:
         return next(i for i in self.items if i.id == item_id)

@@ -60,3 +60,44 @@ def test_a_failed_case_fails_the_conditions_that_need_it(measured):
 def test_output_location_condition_is_reported(measured):
     report = evaluate(_check_results(measured), outputs=OutputLocation(passed=False, evidence="NOT ignored by git"))
     assert [c.id for c in report.failed] == ["outputs"]
+
+
+def test_the_stored_outcome_is_the_verdict_line_and_every_condition(measured):
+    from rubric.check import CheckOutcome, verdict_line
+
+    report = evaluate(_check_results(measured), outputs=OUTPUTS_OK)
+    outcome = report.outcome(notes={"rendering": "Service run: rendering off."})
+    assert isinstance(outcome, CheckOutcome)
+    assert outcome.passed and outcome.verdict_line == verdict_line(True) == "L03 CHECK: PASSED"
+    assert [(c.id, c.title, c.passed) for c in outcome.conditions] == \
+        [(c.id, c.title, c.passed) for c in report.conditions]
+    assert outcome.rubric_version == report.rubric_version
+    assert outcome.backends == {name: "cpu" for name in _check_results(measured)}
+    rendering = next(c for c in outcome.conditions if c.id == "rendering")
+    # A note is added to the evidence, never in place of it, and it cannot change a verdict.
+    original = next(c for c in report.conditions if c.id == "rendering")
+    assert rendering.evidence == original.evidence + "\nService run: rendering off."
+    # The outcome round-trips through JSON, as it is stored with a grade.
+    assert CheckOutcome.model_validate_json(outcome.model_dump_json()) == outcome
+
+
+def test_a_failed_outcome_names_its_failed_conditions_in_the_verdict_line(measured):
+    from rubric import CaseResult
+    from rubric.check import verdict_line
+
+    lost = CaseResult(spec=get_case("friction-table-0.30"), status="failed", error="case process failed (exit 1): boom")
+    report = evaluate(_check_results(measured) | {"friction-table-0.30": lost}, outputs=OUTPUTS_OK)
+    outcome = report.outcome()
+    failed = [c.title for c in outcome.conditions if not c.passed]
+    assert not outcome.passed and failed
+    assert outcome.verdict_line == verdict_line(False, failed)
+    assert outcome.verdict_line.startswith("L03 CHECK: FAILED \u2014 ") and failed[0] in outcome.verdict_line
+    with pytest.raises(KeyError):
+        report.outcome(notes={"no-such-condition": "x"})
+
+
+def test_lane_evidence_names_each_lanes_tilt(measured):
+    report = evaluate(_check_results(measured), outputs=OUTPUTS_OK)
+    evidence = next(c.evidence for c in report.conditions if c.id == "friction_baseline")
+    for lane in measured["friction-baseline"].metrics.lanes.values():
+        assert f"{lane.case} / {lane.lane}:" in evidence and f"max tilt {lane.max_tilt_deg:.1f} deg" in evidence

@@ -56,7 +56,8 @@ def test_grades_the_reference_sheet_and_writes_every_export(engine, tmp_path):
     rubric = load_rubric("L03")
     assert f"total: {rubric.max_total:g} / {rubric.max_total:g} (rubric L03 v{rubric.version}" in result.stdout
     assert "A2  credit" in result.stdout and "Evidence: N1 " in result.stdout
-    assert "running 8 cases" in result.stderr and "sheet.table_exercise" in engine
+    # The lesson runs (N1-N4, both friction runs of the lab check, the colour control) and the sheet's two configs.
+    assert "running 9 cases" in result.stderr and "sheet.table_exercise" in engine
     report = GradeReport.model_validate_json((out / "report.json").read_text())
     assert report.total == rubric.max_total and report.student == "reference"
     gradescope = json.loads((out / "results.json").read_text())

@@ -85,8 +85,9 @@ def test_every_rubric_check_is_implemented():
 def test_cases_to_run_lists_baselines_and_the_sheets_configs_once():
     names = [spec.name for spec in cases_to_run(parse_sheet(sheet_data()))]
     assert len(names) == len(set(names))
-    assert {"N1", "N2", "N3", "N4", "friction-baseline", COLOR_SWAP, "sheet.table_exercise", "sheet.extension"} == \
-        set(names)
+    # friction-table-0.30 is not read by any item: it is there so the lab check can be evaluated on every submission.
+    assert {"N1", "N2", "N3", "N4", "friction-baseline", "friction-table-0.30", COLOR_SWAP, "sheet.table_exercise",
+            "sheet.extension"} == set(names)
 
 
 def test_reference_sheet_gets_full_marks(graded_runs):
@@ -345,3 +346,13 @@ def test_measured_items_change_verdict_when_the_measurement_does(graded_runs, ch
     report = grade_sheet(parse_sheet(sheet_data()), {**runs, **doctor(runs)})
     assert lost(report) == flipped, [(i.id, i.feedback) for i in report.items if i.id in lost(report) ^ flipped]
     assert all(report.item(i).kind == "measured" for i in flipped)
+
+
+def test_a_grade_stored_before_the_lab_check_was_recorded_still_parses(graded_runs):
+    from rubric import GradeReport
+
+    report = grade_sheet(parse_sheet(sheet_data()), graded_runs["reference"])
+    assert report.check is None  # grade_sheet scores items; the worker adds the check where it graded
+    stored = report.model_dump(mode="json")
+    stored.pop("check")
+    assert GradeReport.model_validate(stored).check is None

@@ -111,3 +111,31 @@ def test_rendering_returns_real_frames_on_a_headless_machine(tmp_path):
         assert frame.std() > 1.0, f"{field} is flat"
     # The cube moved between the frames, so the images differ.
     assert np.abs(result.arrays["frame_initial"].astype(int) - result.arrays["frame_final"].astype(int)).sum() > 0
+
+
+def test_lane_orientation_is_recorded_and_a_tumble_is_where_the_cube_ends_on_another_face(measured, tmp_path):
+    """Real runs: at the lesson's tables (0.50, 0.30) no lane tips over; at table 0.90 on this engine the cubes pitch
+    over their front edge. The tumble flag (max tilt past 45 degrees) must agree with an independent reading: the
+    face the cube finally rests on (its z axis horizontal, tilt near 90 degrees, means another face is down)."""
+    from rubric import get_case
+    from rubric.metrics import tilt
+
+    base = get_case("friction-baseline")
+    grippy = base.model_copy(update={"name": "friction-table-0.90",
+                                     "table": base.table.model_copy(update={"friction": 0.90})})
+    runs = [measured["friction-baseline"], measured["friction-table-0.30"], run_case(grippy, tmp_path, mode="warm")]
+    assert runs[-1].ok, runs[-1].error
+    flags = {}
+    for run in runs:
+        for lane in run.spec.lanes:
+            quat = run.arrays[f"{lane.name}_quat"]
+            assert quat.shape == (run.spec.sample_count, 4)
+            np.testing.assert_allclose(np.linalg.norm(quat, axis=1), 1.0, atol=1e-5)
+            m = run.metrics.lane(lane.name)
+            final_tilt = float(np.degrees(tilt(quat[-1:]))[0])
+            assert m.stop.stopped, f"{run.spec.name}/{lane.name} is not at rest: its final face says nothing"
+            assert m.tumbled == (final_tilt > 45.0), (run.spec.name, lane.name, m.max_tilt_deg, final_tilt)
+            flags[(run.spec.name, lane.name)] = m.tumbled
+    # Both outcomes occur, so the agreement above was tested on each side of the rule.
+    assert not any(v for (name, _), v in flags.items() if name != "friction-table-0.90")
+    assert any(v for (name, _), v in flags.items() if name == "friction-table-0.90")

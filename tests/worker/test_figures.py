@@ -149,3 +149,20 @@ def test_camera_path_when_the_run_rendered(tmp_path):
     # The camera frames are drawn at full size at least once over: the figure is larger than one frame.
     frame = result.arrays["frame_initial"]
     assert pixels.shape[1] > frame.shape[1]
+
+
+def test_a_tumbled_lane_is_named_in_words_on_its_figures(measured, lab_pngs, tmp_path):
+    result = measured["friction-baseline"]
+    assert "TUMBLED" not in _meta(lab_pngs["friction_friction-baseline.png"])["Description"]
+    arrays = dict(result.arrays)
+    # The low cube pitches over its front edge onto the next face (90 degrees) half-way through the run.
+    n = len(arrays["t"])
+    half = np.radians(np.r_[np.linspace(0.0, 90.0, n // 2), np.full(n - n // 2, 90.0)]) / 2
+    arrays["low_quat"] = np.stack([np.cos(half), 0 * half, np.sin(half), 0 * half], axis=1)
+    tipped = dataclasses.replace(result, arrays=arrays, metrics=case_metrics(result.spec, arrays))
+    assert tipped.metrics.lane("low").tumbled and not tipped.metrics.lane("high").tumbled
+    path = figures.friction_figure(tipped, tmp_path)
+    _png(path)
+    description = _meta(path)["Description"]
+    assert "low: stopped at t=" in description and "TUMBLED (max tilt 90.0\u00b0): not a sliding stop" in description
+    assert "high: stopped at t=" in description and description.count("TUMBLED") == 1

@@ -6,12 +6,13 @@ lane's contacts, so a figure can never show a recomputed rule that disagrees wit
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
 
 from rubric import CaseResult, FrictionCase, field_changes
-from rubric.metrics import LaneMetrics
+from rubric.metrics import TUMBLE_EXPLANATION, LaneMetrics, tilt, tumble_angle_deg
 from rubric.relations import stop_change
 
 from .common import finish, lane_color, metrics_of, new_figure, safe_name, split_ok
@@ -25,8 +26,17 @@ def pair_text(m: LaneMetrics) -> str:
     return f"pair \u03bc={m.pair_friction:.2f} (engine){flag}"
 
 
+def tumble_text(m: LaneMetrics) -> str:
+    """'max tilt 12.3°', 'TUMBLED (max tilt 90.0°)' past the tip-over angle, or '' where tilt was not recorded."""
+    if m.max_tilt_deg is None:
+        return ""
+    return f"TUMBLED (max tilt {m.max_tilt_deg:.1f}\u00b0)" if m.tumbled else f"max tilt {m.max_tilt_deg:.1f}\u00b0"
+
+
 def _lane_label(m: LaneMetrics) -> str:
-    return f"{m.lane}: cube \u03bc={m.cube_friction:.2f}, table \u03bc={m.table_friction:.2f} \u2192 {pair_text(m)}"
+    tilt = tumble_text(m)
+    return (f"{m.lane}: cube \u03bc={m.cube_friction:.2f}, table \u03bc={m.table_friction:.2f} \u2192 {pair_text(m)}"
+            + (f"; {tilt}" if tilt else ""))
 
 
 def friction_figure(result: CaseResult, out_dir: str | Path) -> Path:
@@ -40,6 +50,7 @@ def friction_figure(result: CaseResult, out_dir: str | Path) -> Path:
             _plot_lane(axes, result, lane, k)
         axes[1].axhspan(-spec.stop_speed, spec.stop_speed, color="#777777", alpha=0.3,
                         label=f"stop band |vx| < {spec.stop_speed:g} m/s (hold {spec.hold:g} s)")
+        _tumble_box(axes[2], result)
     _label_friction_axes(axes)
     fig.suptitle(f"L03 Part B: sliding cubes, run '{spec.name}' (table \u03bc={spec.table.friction:.2f}, "
                  f"dt={spec.dt:g} s, substeps={spec.substeps})", fontsize=13)
@@ -48,13 +59,48 @@ def friction_figure(result: CaseResult, out_dir: str | Path) -> Path:
     return finish(fig, [result], path, source="measured trajectories", skipped=skipped, notes=notes)
 
 
+def _tip_over_index(result: CaseResult, m: LaneMetrics) -> int | None:
+    """First sample whose tilt is past the tip-over angle: where a tumbled cube went over its edge."""
+    quat = result.arrays.get(f"{m.lane}_quat")
+    if not m.tumbled or quat is None:
+        return None
+    cube = result.spec.cube_size
+    return int(np.flatnonzero(np.degrees(tilt(quat)) > tumble_angle_deg(cube, cube))[0])
+
+
+def _mark_tumble(axes, result: CaseResult, m: LaneMetrics, color, series) -> None:
+    """An 'X' where a tumbled lane's cube tipped over its edge, on every panel (the box of words is _tumble_box)."""
+    i = _tip_over_index(result, m)
+    if i is None:
+        return
+    t = result.arrays["t"]
+    for ax, y in zip(axes, series):
+        ax.plot([t[i]], [y[i]], "X", ms=12, color=color, mec="k", zorder=6)
+
+
+def _tumble_box(ax, result: CaseResult) -> None:
+    """One boxed note naming every tumbled lane in words (not colour alone), and why its stop is not a sliding stop."""
+    lanes = [metrics_of(result).lane(lane.name) for lane in result.spec.lanes]
+    tumbled = [m for m in lanes if m.tumbled]
+    if not tumbled:
+        return
+    t = result.arrays["t"]
+    lines = [f"{m.lane}: {tumble_text(m)}, tips over its edge at t={t[_tip_over_index(result, m)]:.2f} s (X)"
+             for m in tumbled]
+    text = "\n".join(lines + textwrap.wrap(TUMBLE_EXPLANATION, 70))
+    ax.text(0.99, 0.95, text, transform=ax.transAxes, ha="right", va="top", fontsize=9.5, color="k",
+            bbox=dict(fc="#fff4dc", ec="#7a4b00", lw=1.5))
+
+
 def stop_note(result: CaseResult, lane_name: str) -> str:
-    """'low: stopped at t=0.45 s after 0.410 m' or 'low: NOT STOPPED within the measured window (...)'."""
+    """'low: stopped at t=0.45 s after 0.410 m' or 'low: NOT STOPPED within the measured window (...)', followed by
+    '; TUMBLED (max tilt ...)' when the cube tipped over onto another face."""
     m = metrics_of(result).lane(lane_name)
+    tumble = f"; {tumble_text(m)}: not a sliding stop" if m.tumbled else ""
     if m.stop.stopped:
-        return f"{lane_name}: stopped at t={m.stop.time:.2f} s after {m.stop.distance:.3f} m"
+        return f"{lane_name}: stopped at t={m.stop.time:.2f} s after {m.stop.distance:.3f} m{tumble}"
     return (f"{lane_name}: NOT STOPPED within the measured window (0\u2013{result.arrays['t'][-1]:.2f} s; "
-            f"final displacement {m.final_displacement:.3f} m)")
+            f"final displacement {m.final_displacement:.3f} m){tumble}")
 
 
 def _plot_lane(axes, result: CaseResult, lane, k: int) -> None:
@@ -79,6 +125,7 @@ def _plot_lane(axes, result: CaseResult, lane, k: int) -> None:
     else:
         axes[0].text(0.99, 0.05 + 0.09 * k, stop_note(result, lane.name), transform=axes[0].transAxes,
                      ha="right", fontsize=9, color="k", bbox=dict(fc="white", ec=color, lw=1.5))
+    _mark_tumble(axes, result, m, color, series)
 
 
 def _label_friction_axes(axes) -> None:
@@ -122,6 +169,8 @@ def _plot_compared_lane(axes, run: CaseResult, lane_name: str, style: dict) -> N
     m = metrics_of(run).lane(lane_name)
     stop = m.stop
     where = f"stop {stop.distance:.3f} m at {stop.time:.2f} s" if stop.stopped else "not stopped in window"
+    if m.tumbled:
+        where += "; TUMBLED"
     label = f"{spec.name}: table \u03bc={m.table_friction:.2f}, {pair_text(m)}; {where}"
     color = lane_color(lane)
     axes[0].plot(t, disp, color=color, label=label, **style)
@@ -146,8 +195,10 @@ def _stop_change(runs: list[CaseResult], lane_name: str) -> str:
 def _label_compared_lane(axes, runs: list[CaseResult], lane) -> None:
     engine = [metrics_of(r).lane(lane.name).pair_friction for r in runs]
     pairs = " \u2192 ".join("no contact" if v is None else f"{v:.2f}" for v in engine) + " (engine)"
+    tumbled = [r.spec.name for r in runs if metrics_of(r).lane(lane.name).tumbled]
+    tumble = f"\nTUMBLED in {', '.join(tumbled)}: not a sliding stop" if tumbled else ""
     axes[0].set_title(f"lane '{lane.name}' (cube \u03bc={lane.friction:.2f}): pair \u03bc {pairs}\n"
-                      f"{_stop_change(runs, lane.name)}", fontsize=11)
+                      f"{_stop_change(runs, lane.name)}{tumble}", fontsize=11)
     axes[0].set_ylabel("displacement x \u2212 x\u2080 (m)")
     axes[1].set_ylabel("velocity vx (m/s)")
     axes[1].set_xlabel("time since measurement start t (s)")

@@ -1,0 +1,113 @@
+"""The lab check stored with a grade: rubric.check evaluated on a submission's own runs, in a grading service.
+
+The lesson's "How to know the lab worked" is written for a local lab run: child processes the learner started, a
+rendering mode the learner chose, an output directory the learner configured. In the service the same conditions are
+evaluated on the same kind of evidence, and each condition whose meaning shifts says how in its evidence:
+- processes: a case may be a measurement reused from an identical earlier run (worker/reuse.py); its provenance is
+  the process that produced the numbers, and the evidence names the reuse;
+- rendering: the service runs the lesson cases with rendering off, so only the disabled branch (explicit empty
+  frames and a rendering SKIP) is exercised; the camera branch is for `grader check --render`;
+- outputs: the configured output directory is the service's ARTIFACTS_DIR. Every accepted .npz and every figure
+  drawn for this grade must lie under it, and it must be outside version control (or ignored by it). Checked on the
+  filesystem here, never assumed.
+Nothing is passed by default: a missing run, an array or figure outside ARTIFACTS_DIR, or an artifacts folder that
+git would commit fails its condition like in the lab.
+"""
+
+from __future__ import annotations
+
+import subprocess
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+from rubric import CHECK_CASES, CaseResult, Rubric
+from rubric.check import CheckOutcome, OutputLocation, evaluate
+
+# Shared by the worker (worker/grading.py, when it grades) and the regrade (grader/regrade.py): a check depends on
+# the rubric version's tolerances, so a regrade evaluates it again on the same runs.
+
+
+def submission_check(results: Mapping[str, CaseResult], *, figures: Iterable[Path], artifacts_dir: Path,
+                     rubric: Rubric, reused: Mapping[str, int] | None = None) -> CheckOutcome:
+    """The L03 check over the submission's runs of the check's cases (N1-N4, friction-baseline, friction-table-0.30).
+
+    The student's own configs (sheet.*) and the colour-swapped control are not lab-check cases; a check case the
+    submission lacks is reported as not run. `reused` maps a case name to the case run whose measurement it reused.
+    """
+    lab = {name: results[name] for name in CHECK_CASES if name in results}
+    outputs = output_location(lab.values(), list(figures), artifacts_dir=Path(artifacts_dir))
+    report = evaluate(lab, outputs=outputs, rubric=rubric)
+    return report.outcome(notes=_service_notes(lab, reused or {}))
+
+
+def _service_notes(lab: Mapping[str, CaseResult], reused: Mapping[str, int]) -> dict[str, str]:
+    notes = {}
+    names = [n for n in lab if n in reused]
+    own = [n for n in lab if n not in reused]
+    parts = []
+    if own:
+        parts.append(f"{', '.join(own)} ran in the grading worker's case processes for this submission")
+    if names:
+        parts.append(f"{', '.join(f'{n} (case run {reused[n]})' for n in names)} reused identical earlier "
+                     "measurements, so their lines report the processes that produced those numbers")
+    notes["processes"] = "Service run: " + ("; ".join(parts) or "no check case was run") + "."
+    if lab and not any(r.spec.render for r in lab.values()):
+        notes["rendering"] = ("Service run: the grading service runs the lesson cases with rendering off, so this "
+                              "condition checks only the disabled branch (explicit empty frames and a rendering SKIP); "
+                              "the pictures of each case on this page are schematics drawn from measured positions. "
+                              "`grader check --render` checks the camera branch (non-empty, finite RGB frames).")
+    notes["outputs"] = ("Service run: the configured output directory is the service's ARTIFACTS_DIR (case-run "
+                        "folders and this submission's figures), not a notebook's output folder.")
+    return notes
+
+
+def output_location(results: Iterable[CaseResult], figures: list[Path], *, artifacts_dir: Path) -> OutputLocation:
+    """Every accepted result's arrays.npz and every figure under artifacts_dir, and artifacts_dir outside version
+    control (or ignored by it)."""
+    root = artifacts_dir.resolve()
+    arrays = [Path(r.out_dir) / "arrays.npz" for r in results if r.ok and r.out_dir]
+    outside = [str(p) for p in [*arrays, *figures] if not _under(p, root)]
+    missing = [str(p) for p in arrays if not p.is_file()]
+    lines = [f"{len(arrays)} .npz and {len(figures)} .png files under ARTIFACTS_DIR {root}"
+             if not outside else f"OUTSIDE ARTIFACTS_DIR {root}: {outside[:3]}"]
+    if missing:
+        lines.append(f"arrays missing: {missing[:3]}")
+    passed = bool(arrays) and bool(figures) and not outside and not missing
+    if not figures:
+        lines.append("no figures were drawn for this grade")
+    tracked, detail = _version_control(root)
+    lines.append(detail)
+    return OutputLocation(passed=passed and not tracked, evidence="; ".join(lines))
+
+
+def _under(path: Path, root: Path) -> bool:
+    return Path(path).resolve().is_relative_to(root)
+
+
+def _version_control(folder: Path) -> tuple[bool, str]:
+    """(could generated files end up in version control, the evidence). A folder inside a git work tree passes only
+    if git itself confirms that the folder is ignored and nothing under it is tracked."""
+    top = next((p for p in (folder, *folder.parents) if (p / ".git").exists()), None)
+    if top is None:
+        return False, "not inside a git work tree"
+    try:
+        ignored = subprocess.run(["git", "-C", str(top), "check-ignore", "-q", str(folder)]).returncode == 0
+        tracked = subprocess.run(["git", "-C", str(top), "ls-files", "--", str(folder)],
+                                 capture_output=True, text=True).stdout.strip()
+    except FileNotFoundError:
+        return True, f"inside git work tree {top}, and git is not installed here to confirm that it is ignored"
+    if not ignored or tracked:
+        return True, (f"inside git work tree {top}: " + ("NOT ignored by git" if not ignored else "ignored")
+                      + (f", tracked files present: {tracked.splitlines()[:3]}" if tracked else ""))
+    return False, f"inside git work tree {top}, ignored by git and nothing under it tracked"
+
+
+def lab_check(results: Mapping[str, CaseResult], *, figures: list, rubric: Rubric, reused: Mapping[str, int],
+              artifacts_dir: Path) -> tuple[CheckOutcome | None, str]:
+    """(the lab check of the submission's runs, or None, and a note for its event). A bug in evaluating the check
+    never blocks or changes a grade: the grade then stores no check and the note says why."""
+    try:
+        check = submission_check(results, figures=figures, artifacts_dir=artifacts_dir, rubric=rubric, reused=reused)
+    except Exception as exc:  # noqa: BLE001 - the evidence of a check bug is the event, the grade stands
+        return None, f"lab check failed: {type(exc).__name__}: {exc}"
+    return check, check.verdict_line

@@ -1,0 +1,88 @@
+"""The lab check a grade stores, on real Genesis measurements: the submission's own runs of the check's cases, with
+the output-location condition checked on the filesystem against ARTIFACTS_DIR rather than assumed."""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+import subprocess
+
+import pytest
+
+from rubric import CHECK_CASES, load_rubric
+from rubric.check import verdict_line
+from grader.core.lab_check import submission_check
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def figures(measured, tmp_path_factory):
+    from worker.figures import lab_figures
+
+    return lab_figures(measured, tmp_path_factory.mktemp("check-figures"))
+
+
+def _condition(outcome, cid):
+    return next(c for c in outcome.conditions if c.id == cid)
+
+
+def test_a_submission_with_every_check_case_passes_and_says_what_each_condition_means_here(
+        measured, figures, tmp_path_factory):
+    artifacts = tmp_path_factory.getbasetemp()  # holds both the measured case folders and the figures
+    outcome = submission_check(measured, figures=figures, artifacts_dir=artifacts, rubric=load_rubric("L03"),
+                               reused={"N1": 7})
+    assert outcome.passed, "\n".join(f"{c.id}: {c.evidence}" for c in outcome.conditions if not c.passed)
+    assert outcome.verdict_line == verdict_line(True) == "L03 CHECK: PASSED"
+    # Evaluated on the check's cases only: the colour-swapped control and N5 are graded, not lab-check cases.
+    assert list(outcome.backends) == list(CHECK_CASES)
+    processes = _condition(outcome, "processes").evidence
+    assert "Service run: N2, N3, N4, friction-baseline, friction-table-0.30 ran in the grading worker's" in processes
+    assert "N1 (case run 7) reused identical earlier measurements" in processes
+    assert "only the disabled branch" in _condition(outcome, "rendering").evidence
+    outputs = _condition(outcome, "outputs").evidence
+    assert f"6 .npz and {len(figures)} .png files under ARTIFACTS_DIR" in outputs
+    assert "not inside a git work tree" in outputs and "ARTIFACTS_DIR" in outputs
+
+
+def test_files_outside_artifacts_dir_fail_the_output_condition(measured, figures, tmp_path):
+    outcome = submission_check(measured, figures=figures, artifacts_dir=tmp_path, rubric=load_rubric("L03"))
+    assert not outcome.passed and [c.id for c in outcome.conditions if not c.passed] == ["outputs"]
+    assert "OUTSIDE ARTIFACTS_DIR" in _condition(outcome, "outputs").evidence
+    assert outcome.verdict_line == verdict_line(False, [_condition(outcome, "outputs").title])
+
+
+@pytest.mark.parametrize("ignored", [False, True])
+def test_an_artifacts_dir_inside_a_git_work_tree_must_be_ignored_by_it(measured, tmp_path, ignored):
+    repo = tmp_path / "repo"
+    artifacts = repo / "var" / "artifacts"
+    subprocess.run(["git", "init", "-q", str(repo)], check=True)
+    if ignored:
+        (repo / ".gitignore").write_text("var/\n")
+    results = {}
+    for name in CHECK_CASES:
+        folder = artifacts / "case-runs" / name
+        shutil.copytree(measured[name].out_dir, folder)
+        results[name] = dataclasses.replace(measured[name], out_dir=str(folder))
+    figure = artifacts / "figures" / "friction_friction-baseline.png"
+    figure.parent.mkdir(parents=True)
+    figure.write_bytes(b"\x89PNG\r\n\x1a\n")  # only where it lies is checked here, not what it shows
+    outcome = submission_check(results, figures=[figure], artifacts_dir=artifacts, rubric=load_rubric("L03"))
+    outputs = _condition(outcome, "outputs")
+    assert outputs.passed is ignored, outputs.evidence
+    assert ("ignored by git and nothing under it tracked" if ignored else "NOT ignored by git") in outputs.evidence
+
+
+def test_a_missing_check_case_is_reported_not_run(measured, figures, tmp_path_factory):
+    partial = {name: r for name, r in measured.items() if name != "friction-table-0.30"}
+    outcome = submission_check(partial, figures=figures, artifacts_dir=tmp_path_factory.getbasetemp(),
+                               rubric=load_rubric("L03"))
+    assert not outcome.passed
+    assert [c.id for c in outcome.conditions if not c.passed] == ["table_friction_change"]
+    assert "friction-table-0.30" in _condition(outcome, "table_friction_change").evidence
+
+
+def test_the_lab_check_of_a_grade_never_imports_genesis_or_torch():
+    from tests.factories import heavy_imports
+
+    assert heavy_imports(["grader.core.lab_check", "worker.grading"]) == []
