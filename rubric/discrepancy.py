@@ -214,7 +214,7 @@ CONTACT_METRICS = ("penetration_proxy", "min_z", "min_clearance", "final_clearan
                    "tail_peak_to_peak", "first_contact_time", "contact_samples", "separation_samples",
                    "upward_samples_after_contact", "max_upward_velocity_after_contact", "max_tilt_deg", "passed_through")
 LANE_METRICS = ("table_friction", "cube_friction", "pair_friction", "pair_friction_agrees", "initial_vx", "stopped",
-                "stop_distance", "stop_time", "final_displacement", "max_abs_omega", "stayed_on_table")
+                "stop_distance", "stop_time", "final_displacement", "max_abs_omega", "max_tilt_deg", "stayed_on_table")
 
 
 def _lane_value(m: LaneMetrics, name: str) -> Value:
@@ -267,6 +267,10 @@ def _stopped(m: LaneMetrics) -> tuple[bool, str]:
                             else m.stop.detail)
 
 
+def _slides(m: LaneMetrics) -> tuple[bool, str]:
+    return not m.tumbled, f"max tilt {m.max_tilt_deg:.1f} deg" + (" (TUMBLED)" if m.tumbled else "")
+
+
 def low_lane_farther(friction: FrictionMetrics, tol: float) -> tuple[bool | None, str]:
     """Does the lane with the lower engine pair friction stop farther, beyond the grading resolution?"""
     low, high = lanes_by_pair(friction)
@@ -290,6 +294,9 @@ def case_relations(left: CaseResult, right: CaseResult, rubric: Rubric | None = 
         ]
     checks = [_relation(f"stopped.{lane}", f"lane {lane} stops (sustained) within the measured window",
                         _stopped(ml.lane(lane)), _stopped(mr.lane(lane)), labels) for lane in ml.lanes]
+    checks += [_relation(f"slides.{lane}", f"lane {lane}'s cube slides without tumbling (rubric.metrics tumble rule)",
+                         _slides(ml.lane(lane)), _slides(mr.lane(lane)), labels) for lane in ml.lanes
+               if ml.lane(lane).tumbled is not None and mr.lane(lane).tumbled is not None]
     if len(ml.lanes) > 1:
         tol = (rubric or load_rubric("L03")).tolerances["stop_distance_resolution"].value
         checks.append(_relation("low_lane_farther", "the lane with the lower pair friction travels farther before "
