@@ -79,7 +79,9 @@ def engine_version(ctx: Context, item: Item, a) -> Outcome:
     recorded = {r.provenance.versions.get("genesis", "unknown") for r in ctx.results.values()
                 if r.ok and r.provenance is not None}
     if not recorded:
-        raise NotMeasured("no run of this submission recorded a Genesis version")
+        errors = sorted({r.error for r in ctx.results.values() if r.error})
+        raise NotMeasured("no valid run of this submission recorded a Genesis version"
+                          + (f": {errors[0]}" if errors else ""))
     found = [v for v in sorted(recorded) if re.search(rf"(?<![0-9.]){re.escape(v)}(?![0-9.])", a.engine_version)]
     ok = len(recorded) == 1 and bool(found)
     return Outcome(credit(ok), " and ".join(sorted(recorded)),

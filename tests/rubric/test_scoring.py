@@ -315,8 +315,18 @@ def _colour_changed_the_physics(runs):
     return {COLOR_SWAP: dataclasses.replace(runs["sheet.table_exercise"], spec=runs[COLOR_SWAP].spec)}
 
 
-def _another_engine_version(runs):
-    return {name: _with_provenance(r, versions={**r.provenance.versions, "genesis": "1.3.4"}) for name, r in runs.items()}
+def test_runs_recorded_under_another_genesis_version_are_never_graded(graded_runs):
+    """Since the provenance guards (rubric/guards.py): not one verdict is drawn from them, H6 included, and each
+    item says why (it used to be H6 alone that noticed)."""
+    runs = graded_runs["reference"]
+    other = {name: _with_provenance(r, versions={**r.provenance.versions, "genesis": "1.3.4"})
+             for name, r in runs.items()}
+    report = grade_sheet(parse_sheet(sheet_data()), other)
+    measured = [i for i in report.items if i.kind == "measured"]
+    assert measured and all(i.verdict == "not_measured" for i in measured), [(i.id, i.verdict) for i in measured]
+    assert all("Genesis 1.3.4" in i.feedback and "pins Genesis 1.3.3" in i.feedback for i in measured), \
+        [(i.id, i.feedback) for i in measured if "pins Genesis" not in i.feedback]
+    assert report.item("H6").verdict == "not_measured"
 
 
 def _n4_ran_other_substeps(runs):
@@ -333,7 +343,6 @@ def _n4_recorded_150_samples(runs):
 MEASUREMENT_CHANGES = {
     "an engine that used the min pair rule": (_min_rule_engine, {"B1", "C5", "C6", "H1"}),
     "a colour swap that changed the physics": (_colour_changed_the_physics, {"B4", "C7"}),
-    "runs recorded under another Genesis version": (_another_engine_version, {"H6"}),
     "an engine that ran N4 with other substeps": (_n4_ran_other_substeps, {"C1"}),
     "an N4 record with 150 samples": (_n4_recorded_150_samples, {"A1", "A4"}),
 }
