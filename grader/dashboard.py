@@ -15,6 +15,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.models import CaseRun, Course, Grade, Submission, utcnow
+from grader.schemas import UtcDateTime
 from grader.settings import settings
 
 
@@ -22,7 +23,7 @@ class RosterRow(BaseModel):
     student: str
     submission_id: int
     status: str
-    submitted_at: datetime
+    submitted_at: UtcDateTime
     attempts: int
     total: float | None
     max_total: float | None
@@ -35,7 +36,7 @@ class RunProblem(BaseModel):
     case: str
     status: str
     reason: str
-    since: datetime
+    since: UtcDateTime
 
 
 class Dashboard(BaseModel):
