@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 from datetime import date, datetime, time
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, HTTPException, Query, status
 from fastapi.responses import PlainTextResponse, Response
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
@@ -61,6 +62,16 @@ def staff(user: User) -> None:
         raise HTTPException(status.HTTP_403_FORBIDDEN, "the audit log is for auditors and instructors")
 
 
+def _iso_date(value: Any) -> Any:
+    """Only YYYY-MM-DD, as documented (format: date); pydantic alone would also read `0` as 1970-01-01."""
+    if isinstance(value, str) and not re.fullmatch(r"[0-9]{4}-[0-9]{2}-[0-9]{2}", value):
+        raise ValueError("must be a date written YYYY-MM-DD")
+    return value
+
+
+IsoDate = Annotated[date, BeforeValidator(_iso_date)]
+
+
 class Filters(BaseModel):
     """Filters of the log (query parameters; unknown ones are refused)."""
 
@@ -71,8 +82,8 @@ class Filters(BaseModel):
     classification: Classification | None = None
     backends: Annotated[str | None, Field(pattern=r"^(cpu|rocm|cuda),(cpu|rocm|cuda)$",
                                           description="Two backends, e.g. cpu,cuda: entries comparing exactly these")] = None
-    since: date | None = None
-    until: date | None = None
+    since: IsoDate | None = None
+    until: IsoDate | None = None
 
 
 def filtered_entries(session: Session, user: User, filters: Filters, limit: int = 500) -> list[AuditEntry]:
