@@ -258,3 +258,24 @@ def test_openapi_documents_every_error_status_as_error_body(api):
 def test_a_405_lists_every_method_of_the_path(api):
     response = api.client.request("DELETE", "/v1/submissions", headers=api.as_("alice"))
     assert response.status_code == 405 and response.headers["allow"] == "GET, POST"
+
+
+def test_pages_answer_ids_outside_the_range_without_a_500(api):
+    for path in (f"/submissions/{2**63}", f"/audit/{2**63}", f"/submissions/{2**63}/figures/a.png", f"/audit/{2**31}"):
+        assert api.client.get(path, headers=api.as_("prof")).status_code == 404, path
+    refused = api.client.post("/audit/reruns", data={"case_run_id": str(2**63)}, headers=api.as_("tess"),
+                              follow_redirects=False)
+    assert refused.status_code == 422 and refused.json()["errors"][0]["field"] == "case_run_id", refused.text
+
+
+def test_the_audit_csv_writes_utc_with_an_offset():
+    from datetime import datetime
+    from types import SimpleNamespace
+
+    from grader.api.routes.audit import entries_csv
+
+    entry = SimpleNamespace(id=1, created_at=datetime(2026, 1, 2, 3, 4, 5), lesson="L03", case="N1",
+                            left_case_run_id=1, right_case_run_id=2, left_variant="cpu/32/warm",
+                            right_variant="cpu/64/warm", left_provenance=None, right_provenance=None,
+                            classification="identical", summary="")
+    assert entries_csv([entry]).splitlines()[1].startswith("1,2026-01-02T03:04:05+00:00,")

@@ -20,7 +20,7 @@ from grader.api.deps import CurrentUser, RowId, SessionDep
 from grader.api.responses import csv_ok, errors
 from grader.core.audit import create_audit_rerun
 from grader.models import AuditEntry, CaseRun, Submission, User
-from grader.schemas import CaseRunPublic, UtcDateTime
+from grader.schemas import CaseRunPublic, UtcDateTime, as_utc
 
 router = APIRouter(tags=["audit"], responses=errors(401, 403, 422))
 Classification = Literal["identical", "within_tolerance", "numeric_drift", "relation_changed", "provenance_violation",
@@ -137,7 +137,7 @@ def entries_csv(entries: list[AuditEntry]) -> str:
                      "left_variant", "right_variant", "left_genesis", "right_genesis", "classification", "summary"])
     for e in entries:
         versions = [((p or {}).get("versions") or {}).get("genesis", "") for p in (e.left_provenance, e.right_provenance)]
-        writer.writerow([e.id, e.created_at.isoformat(), e.lesson, e.case, e.left_case_run_id, e.right_case_run_id or "",
+        writer.writerow([e.id, as_utc(e.created_at).isoformat(), e.lesson, e.case, e.left_case_run_id, e.right_case_run_id or "",
                          e.left_variant, e.right_variant, *versions, e.classification, e.summary])
     return out.getvalue()
 
