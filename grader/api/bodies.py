@@ -60,8 +60,8 @@ def value_problems(value: Any, *, max_depth: int) -> list[dict[str, str]]:
 
 
 class BodyGuard:
-    """ASGI middleware: 413 for a declared or streamed body over max_bytes, 422 for a JSON body that is not UTF-8,
-    not JSON, too deep or holds NaN/Infinity; the body is read once and replayed to the app."""
+    """ASGI middleware: 413 for a declared or streamed body over max_bytes (any content type), 422 for a JSON body
+    that is not UTF-8, not JSON, too deep or holds NaN/Infinity; the body is read once, whole, and replayed."""
 
     def __init__(self, app, *, max_bytes: int, max_depth: int):
         self.app, self.max_bytes, self.max_depth = app, max_bytes, max_depth
@@ -73,18 +73,17 @@ class BodyGuard:
         declared = headers.get("content-length", "")
         if declared.isdigit() and int(declared) > self.max_bytes:
             return await _send_error(send, 413, "request body too large", [self._size_rule()])
-        if not is_json(headers.get("content-type")):
-            return await self._streamed(scope, receive, send)
-        body, more = b"", True
-        while more:
+        buffer, more = bytearray(), True  # bytearray: many tiny chunks must not cost quadratic copying
+        while more:  # read whole, bounded: a limit raised inside the app's own read would become FastAPI's 400
             message = await receive()
             if message["type"] != "http.request":
                 return  # the client went away before sending its body: nobody to answer
-            body += message.get("body", b"")
+            buffer += message.get("body", b"")
             more = message.get("more_body", False)
-            if len(body) > self.max_bytes:
+            if len(buffer) > self.max_bytes:
                 return await _send_error(send, 413, "request body too large", [self._size_rule()])
-        if problems := json_problems(body, max_depth=self.max_depth):
+        body = bytes(buffer)
+        if is_json(headers.get("content-type")) and (problems := json_problems(body, max_depth=self.max_depth)):
             return await _send_error(send, 422, "invalid JSON body", problems)
         replayed = False
 
@@ -97,29 +96,8 @@ class BodyGuard:
 
         await self.app(scope, replay, send)
 
-    async def _streamed(self, scope, receive, send):
-        """Other bodies (the pages' forms) pass through, counted as they stream."""
-        seen = 0
-
-        async def limited():
-            nonlocal seen
-            message = await receive()
-            seen += len(message.get("body", b""))
-            if seen > self.max_bytes:
-                raise _TooLarge
-            return message
-
-        try:
-            await self.app(scope, limited, send)
-        except _TooLarge:
-            await _send_error(send, 413, "request body too large", [self._size_rule()])
-
     def _size_rule(self) -> dict[str, str]:
         return {"field": "body", "rule": f"at most {self.max_bytes} bytes"}
-
-
-class _TooLarge(Exception):
-    pass
 
 
 async def _send_error(send, status: int, detail: str, errors: list[dict[str, str]]) -> None:

@@ -111,6 +111,27 @@ def test_an_oversized_body_sent_in_chunks_without_a_length_is_refused(api):
     assert stored() == NOTHING
 
 
+def test_an_oversized_non_json_body_streamed_without_a_length_is_refused(api):
+    from grader.settings import settings
+
+    def chunks():
+        for _ in range(settings.max_body_bytes // 50_000 + 2):
+            yield b"x" * 50_000
+
+    response = api.client.post("/v1/submissions", content=chunks(),
+                               headers=api.as_("alice") | {"content-type": "text/plain"})
+    assert response.status_code == 413 and response.json()["errors"][0]["field"] == "body"
+    assert stored() == NOTHING
+
+
+def test_many_errors_are_cut_to_the_first_twenty_and_say_so(api):
+    empty = {"lesson": "L03", "student": "alice", "answers": {}, "configs": {}}  # 26 answers and 2 configs missing
+    response = api.client.post("/v1/submissions", json={"sheet": empty}, headers=api.as_("alice"))
+    assert response.status_code == 422
+    assert len(response.json()["errors"]) == 20 and "the first 20 of 28 errors" in response.json()["detail"]
+    assert stored() == NOTHING
+
+
 @pytest.mark.parametrize("route", ["/v1/rubrics/versions", "/v1/courses/l03/regrades"])
 def test_the_body_guard_covers_every_json_route(api, route):
     response = api.client.post(route, content=json.dumps({"version": nested(200)}),
