@@ -20,6 +20,7 @@ from sqlalchemy.orm import Session, selectinload
 
 from grader.core.rubrics import current_grade
 from grader.models import CaseRun, Course, Event, Grade, Submission, User, utcnow
+from grader.schemas import UtcDateTime
 from grader.settings import settings
 
 
@@ -27,7 +28,7 @@ class RosterRow(BaseModel):
     student: str
     submission_id: int
     status: str
-    submitted_at: datetime
+    submitted_at: UtcDateTime
     attempts: int
     total: float | None
     max_total: float | None
@@ -40,7 +41,7 @@ class RunProblem(BaseModel):
     case: str
     status: str
     reason: str
-    since: datetime
+    since: UtcDateTime
     attempt: int
     resendable: bool
     not_resendable_because: str | None = None
@@ -165,8 +166,9 @@ def resend_case_run(*, session: Session, case_run_id: int, user: User) -> CaseRu
     The caller commits nothing itself: this commits, then sends (so the message never precedes the state).
     """
     from grader import dispatch
+    from grader.api.deps import MAX_ID
 
-    run = session.get(CaseRun, case_run_id) if 0 < case_run_id < 2**63 else None
+    run = session.get(CaseRun, case_run_id) if 0 < case_run_id <= MAX_ID else None
     if run is None or run.submission.course_id != user.course_id:
         raise ResendRefused(404, f"case run {case_run_id} not found")
     if user.role != "instructor":

@@ -18,7 +18,7 @@ app = FastAPI(
     "the grade, every measured number and its provenance are stored and served. "
     "Every endpoint except /v1/health and the docs needs a bearer token.",
 )
-errors.install(app, max_bytes=settings.max_body_bytes)
+errors.install(app, max_bytes=settings.max_body_bytes, max_depth=settings.max_json_depth)
 app.include_router(api_router)
 app.include_router(metrics_router)
 app.include_router(pages_router)

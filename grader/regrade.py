@@ -10,7 +10,6 @@ course grades its new submissions under that version from then on. Both are reco
 from __future__ import annotations
 
 import time
-from datetime import datetime
 
 from pydantic import BaseModel
 from sqlalchemy import select
@@ -21,6 +20,7 @@ from grader.core.lifecycle import stored_result
 from grader.core.rubrics import course_version, get_version
 from grader.models import Course, Grade, Regrade, Submission, User, utcnow
 from grader.settings import settings
+from grader.schemas import UtcDateTime
 
 
 class ItemDiff(BaseModel):
@@ -68,7 +68,7 @@ class RegradeRecord(BaseModel):
     lesson: str
     version: str
     committed_by: str
-    committed_at: datetime
+    committed_at: UtcDateTime
     regraded: int
     changed: int
     skipped: list[dict]

@@ -2,10 +2,18 @@
 
 from __future__ import annotations
 
-from datetime import datetime
-from typing import Any, Literal
+from datetime import UTC, datetime
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
+
+
+def as_utc(value: datetime) -> datetime:
+    """The database stores naive UTC; every timestamp leaves the API as UTC with an explicit offset (RFC 3339)."""
+    return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
+
+
+UtcDateTime = Annotated[datetime, AfterValidator(as_utc)]
 
 
 class Strict(BaseModel):
@@ -22,7 +30,8 @@ class SubmissionCreate(Strict):
 
 
 class FieldError(BaseModel):
-    field: str = Field(description="Dotted path of the offending item, e.g. sheet.answers.A3.agree")
+    field: str = Field(description="Dotted path of the offending item in the body, e.g. sheet.answers.A3.agree; "
+                                   "path.NAME or query.NAME for a parameter; body for the body as a whole")
     rule: str = Field(description="The rule it breaks")
 
 
@@ -64,9 +73,9 @@ class CaseRunPublic(BaseModel):
     spec: dict[str, Any]
     provenance: dict[str, Any] | None
     metrics: dict[str, Any] | None = Field(description="Metrics computed once where the case ran (rubric.metrics)")
-    queued_at: datetime
-    started_at: datetime | None
-    finished_at: datetime | None
+    queued_at: UtcDateTime
+    started_at: UtcDateTime | None
+    finished_at: UtcDateTime | None
     purpose: str = Field("grading", description="grading, or audit: a re-measurement that never counts in a grade")
     mode: str | None = Field(None, description="Execution mode the run asked for (None: the worker's setting)")
     source_case_run_id: int | None = Field(None, description="The case run an audit re-run re-measures")
@@ -86,9 +95,9 @@ class SubmissionPublic(BaseModel):
     force_rerun: bool
     error: str | None
     progress: Progress
-    created_at: datetime
-    updated_at: datetime
-    graded_at: datetime | None
+    created_at: UtcDateTime
+    updated_at: UtcDateTime
+    graded_at: UtcDateTime | None
     total: float | None = None
     max_total: float | None = None
 
@@ -113,8 +122,8 @@ class GradePublic(BaseModel):
     rubric_version: str
     rubric_hash: str
     items: list[GradeItemPublic]
-    created_at: datetime
-    superseded_at: datetime | None = None  # set once a committed regrade replaced this grade
+    created_at: UtcDateTime
+    superseded_at: UtcDateTime | None = None  # set once a committed regrade replaced this grade
     regrade_id: int | None = None  # the regrade that wrote this grade; None for the first grading
 
 
@@ -125,8 +134,8 @@ class GradeHistoryEntry(BaseModel):
     rubric_hash: str
     total: float
     max_total: float
-    created_at: datetime
-    superseded_at: datetime | None
+    created_at: UtcDateTime
+    superseded_at: UtcDateTime | None
     regrade_id: int | None
     regraded_by: str | None
     current: bool
@@ -138,7 +147,7 @@ class EventPublic(BaseModel):
     case_run_id: int | None
     state: str
     detail: str | None
-    at: datetime
+    at: UtcDateTime
 
 
 class Health(BaseModel):

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 PLACEHOLDERS = ("changeme", "change-me", "password@", ":postgres@")
@@ -33,6 +33,20 @@ class Settings(BaseSettings):
     execution_mode: Literal["warm", "isolated"] = "warm"
     warm_max_cases: int = Field(50, ge=1)
     max_body_bytes: int = Field(1_000_000, gt=0)
+    # A sheet is about 6 levels deep; deeper JSON is refused before anything walks it.
+    max_json_depth: int = Field(32, ge=4, le=200)
+    # Per API token, in the `limits` notation ("10/minute", "100/hour"): each submission queues real Genesis runs.
+    rate_limit_submissions: str = "10/minute"
+    # Where the counts live: memory:// for one API process (embedded); redis://... when several API processes serve.
+    rate_limit_storage_url: str = "memory://"
+
+    @field_validator("rate_limit_submissions")
+    @classmethod
+    def _a_rate_limit(cls, value: str) -> str:
+        from limits import parse
+
+        parse(value)  # raises ValueError naming the bad notation
+        return value
 
     @model_validator(mode="after")
     def _derive_and_refuse_placeholders(self) -> "Settings":

@@ -66,9 +66,14 @@ def _unique(values: list) -> list:
     return values
 
 
+# Lists are capped at their number of possible distinct entries, and counts at far beyond any L03 case, so an absurd
+# answer is refused naming its field rather than stored (or echoed back in an error a thousand times).
+MAX_COUNT = 10**9
+
+
 class A1(Answer):
-    samples_150: list[CaseName]
-    samples_75: list[CaseName]
+    samples_150: Annotated[list[CaseName], Field(max_length=4)]
+    samples_75: Annotated[list[CaseName], Field(max_length=4)]
     _unique = field_validator("samples_150", "samples_75")(_unique)
 
 
@@ -89,7 +94,7 @@ class A5(Answer):
 
 
 class B1(Answer):
-    lanes: list[LaneName]
+    lanes: Annotated[list[LaneName], Field(max_length=2)]
     _unique = field_validator("lanes")(_unique)
 
 
@@ -108,8 +113,8 @@ class B4(Answer):
 
 class TimingNumbers(Answer):
     substep_dt: TimeQuantity
-    samples: Annotated[int, Field(ge=0)]
-    internal_updates: Annotated[int, Field(ge=0)]
+    samples: Annotated[int, Field(ge=0, le=MAX_COUNT)]
+    internal_updates: Annotated[int, Field(ge=0, le=MAX_COUNT)]
 
 
 class C2(Answer):
@@ -177,13 +182,13 @@ class H6(Answer):
 
 
 class X2(Answer):
-    may_improve: list[Diagnostic]
+    may_improve: Annotated[list[Diagnostic], Field(max_length=7)]
     _unique = field_validator("may_improve")(_unique)
 
 
 class X3(Answer):
     every_diagnostic_improves: bool
-    not_guaranteed: list[Diagnostic] = []
+    not_guaranteed: Annotated[list[Diagnostic], Field(max_length=7)] = []
 
 
 class Answers(SheetModel):

@@ -5,13 +5,21 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Annotated
 
-from fastapi import Depends, HTTPException, status
+from fastapi import Depends, HTTPException, Path, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.orm import Session
 
 from grader import crud
 from grader.core.db import new_session
 from grader.models import Submission, User
+
+# Primary keys are SQL INTEGER columns: 32-bit on PostgreSQL, the deployment database. An id outside this range names
+# no row on either database (SQLite cannot even bind one above 2**63 - 1: that was a 500), so it is refused up front
+# with 422 naming the parameter, and the range is in the OpenAPI schema.
+MAX_ID = 2**31 - 1
+RowId = Annotated[int, Path(ge=1, le=MAX_ID, description=f"A row id, 1 to {MAX_ID}")]
+# Course and case-run names as the tables store them (String(64)); a longer one cannot exist.
+Name = Annotated[str, Path(min_length=1, max_length=64)]
 
 bearer = HTTPBearer(auto_error=False, description="An API token from `grader admin token`.")
 
@@ -37,7 +45,7 @@ def current_user(session: SessionDep,
 CurrentUser = Annotated[User, Depends(current_user)]
 
 
-def readable_submission(submission_id: int, session: SessionDep, user: CurrentUser) -> Submission:
+def readable_submission(submission_id: RowId, session: SessionDep, user: CurrentUser) -> Submission:
     """The submission if the caller may read it; 404 otherwise (never revealing that it exists)."""
     submission = session.get(Submission, submission_id)
     if submission is None or not crud.can_read(user=user, submission=submission):

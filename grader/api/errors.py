@@ -1,13 +1,23 @@
-"""Every error is JSON {detail, errors: [{field, rule}]}; bodies over the size limit are refused before parsing."""
+"""Every error is JSON {detail, errors: [{field, rule}]} (grader.schemas.ErrorBody); bodies are checked by
+grader.api.bodies before any handler runs."""
 
 from __future__ import annotations
 
-import json
-
-from fastapi import FastAPI, Request
+from fastapi import FastAPI, HTTPException, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from fastapi.routing import iter_route_contexts
 from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from grader.api.bodies import MAX_ERRORS, BodyGuard
+
+
+class FieldError(HTTPException):
+    """An HTTPException whose body names the field and the rule, like a validation error."""
+
+    def __init__(self, status_code: int, detail: str, errors: list[dict[str, str]], headers=None):
+        super().__init__(status_code, detail, headers)
+        self.errors = errors
 
 
 def field_errors(lines: list[str], prefix: str = "") -> list[dict[str, str]]:
@@ -21,58 +31,41 @@ def field_errors(lines: list[str], prefix: str = "") -> list[dict[str, str]]:
 
 
 def error(status: int, detail: str, errors: list[dict[str, str]] | None = None, headers=None) -> JSONResponse:
-    return JSONResponse({"detail": detail, "errors": errors or []}, status_code=status, headers=headers)
+    errors = errors or []
+    if len(errors) > MAX_ERRORS:  # a huge list of bad items must not make a huge answer
+        detail = f"{detail} (the first {MAX_ERRORS} of {len(errors)} errors)"
+        errors = errors[:MAX_ERRORS]
+    return JSONResponse({"detail": detail, "errors": errors}, status_code=status, headers=headers)
+
+
+def _field(loc: tuple) -> str:
+    """A body field by its dotted path from the top (`sheet.answers.A3.agree`), a parameter as path.NAME / query.NAME."""
+    parts = loc[1:] if len(loc) > 1 and loc[0] == "body" else loc
+    return ".".join(str(p) for p in parts)
 
 
 async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
-    errors = [{"field": ".".join(str(p) for p in e["loc"]), "rule": e["msg"]} for e in exc.errors()]
+    errors = [{"field": _field(e["loc"]), "rule": e["msg"]} for e in exc.errors()]
     return error(422, "invalid request", errors)
 
 
-async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
-    return error(exc.status_code, str(exc.detail), headers=getattr(exc, "headers", None))
+async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+    headers = dict(getattr(exc, "headers", None) or {})
+    if exc.status_code == 405:  # Starlette names only the first route of the path; a path has one route per method
+        headers["Allow"] = ", ".join(sorted(_allowed_methods(request)))
+    return error(exc.status_code, str(exc.detail), getattr(exc, "errors", None), headers=headers or None)
 
 
-class BodyLimit:
-    """ASGI middleware: 413 for a declared or streamed body over max_bytes, before any handler reads it."""
-
-    def __init__(self, app, max_bytes: int):
-        self.app, self.max_bytes = app, max_bytes
-
-    async def __call__(self, scope, receive, send):
-        if scope["type"] != "http":
-            return await self.app(scope, receive, send)
-        declared = dict(scope["headers"]).get(b"content-length")
-        if declared is not None and declared.isdigit() and int(declared) > self.max_bytes:
-            return await self._refuse(send)
-        seen = 0
-
-        async def limited():
-            nonlocal seen
-            message = await receive()
-            seen += len(message.get("body", b""))
-            if seen > self.max_bytes:
-                raise _TooLarge
-            return message
-
-        try:
-            await self.app(scope, limited, send)
-        except _TooLarge:
-            await self._refuse(send)
-
-    async def _refuse(self, send):
-        body = json.dumps({"detail": "request body too large",
-                           "errors": [{"field": "body", "rule": f"at most {self.max_bytes} bytes"}]}).encode()
-        await send({"type": "http.response.start", "status": 413,
-                    "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode())]})
-        await send({"type": "http.response.body", "body": body})
+def _allowed_methods(request: Request) -> set[str]:
+    methods: set[str] = set()
+    for route in iter_route_contexts(request.app.routes):
+        regex = getattr(route, "path_regex", None)
+        if route.methods and regex is not None and regex.match(request.scope["path"]):
+            methods |= route.methods
+    return methods
 
 
-class _TooLarge(Exception):
-    pass
-
-
-def install(app: FastAPI, *, max_bytes: int) -> None:
+def install(app: FastAPI, *, max_bytes: int, max_depth: int) -> None:
     app.add_exception_handler(RequestValidationError, _validation)
     app.add_exception_handler(StarletteHTTPException, _http)
-    app.add_middleware(BodyLimit, max_bytes=max_bytes)
+    app.add_middleware(BodyGuard, max_bytes=max_bytes, max_depth=max_depth)

@@ -9,7 +9,7 @@ from fastapi import APIRouter, Form, HTTPException, Request, status
 from fastapi.responses import FileResponse, HTMLResponse, PlainTextResponse, RedirectResponse
 from pydantic import ValidationError
 
-from grader.api.deps import SessionDep
+from grader.api.deps import MAX_ID, SessionDep
 from grader.api.routes.audit import AuditRerunRequest, Filters, entries_csv, filtered_entries, request_rerun
 from grader.models import AuditEntry, CaseRun
 from grader.pages.auth import PageUser
@@ -61,7 +61,7 @@ def audit_csv(request: Request, session: SessionDep, user: PageUser):
 
 
 def _entry(session, user, entry_id: int) -> AuditEntry | None:
-    entry = session.get(AuditEntry, entry_id) if 0 < entry_id < 2**63 else None
+    entry = session.get(AuditEntry, entry_id) if 0 < entry_id <= MAX_ID else None
     return entry if entry is not None and user.role != "student" and entry.course_id == user.course_id else None
 
 
@@ -91,7 +91,8 @@ def audit_figure(request: Request, entry_id: int, filename: str, session: Sessio
 
 
 @router.post("/audit/reruns")
-def audit_rerun_form(request: Request, session: SessionDep, user: PageUser, case_run_id: int = Form(...),
+def audit_rerun_form(request: Request, session: SessionDep, user: PageUser,
+                     case_run_id: int = Form(..., ge=1, le=MAX_ID),  # request_rerun trusts the API's bound
                      backend: str = Form("cpu"), precision: str = Form("32"), mode: str = Form("")):
     if user is None:
         return _sign_in_redirect(request)

@@ -16,7 +16,7 @@ from fastapi import APIRouter, Request, status
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy import select
 
-from grader.api.deps import SessionDep
+from grader.api.deps import MAX_ID, SessionDep
 from grader.models import CaseRun, Course
 from grader.pages.auth import PageUser
 from grader.pages.routes import TEMPLATES, _not_found, _sign_in_redirect
@@ -48,7 +48,7 @@ def dashboard_page(request: Request, course: str, session: SessionDep, user: Pag
     if row is None:
         return _not_found(request, user, f"dashboard for course {course}")
     message = None
-    run = session.get(CaseRun, resent) if resent and 0 < resent < 2**63 else None
+    run = session.get(CaseRun, resent) if resent and 0 < resent <= MAX_ID else None
     if run is not None and run.submission.course_id == row.id:  # say what is true now, not what the URL claims
         message = (f"Case run {run.id} ({run.name} of submission {run.submission_id}) was re-sent: "
                    f"now {run.status}, attempt {run.attempt} on the {run.backend} queue.")

@@ -16,7 +16,7 @@ from fastapi.templating import Jinja2Templates
 from sqlalchemy import select
 
 from grader import crud
-from grader.api.deps import SessionDep
+from grader.api.deps import MAX_ID, SessionDep
 from grader.api.routes.files import EVIDENCE
 from grader.core.rubrics import current_grade, grade_history
 from grader.models import Grade, Submission
@@ -43,7 +43,8 @@ def _not_found(request: Request, user, what: str) -> HTMLResponse:
 
 
 def _readable(session, user, submission_id: int) -> Submission | None:
-    submission = session.get(Submission, submission_id) if 0 < submission_id < 2**63 else None
+    # Pages answer an id outside the keys' range like any unknown id: the 404 page (the API says 422).
+    submission = session.get(Submission, submission_id) if 0 < submission_id <= MAX_ID else None
     if submission is None or not crud.can_read(user=user, submission=submission):
         return None
     return submission

@@ -5,23 +5,24 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 from datetime import date, datetime, time
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, HTTPException, Query, status
-from fastapi.responses import PlainTextResponse
-from pydantic import BaseModel, ConfigDict, Field
+from fastapi.responses import PlainTextResponse, Response
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader import dispatch
-from grader.api.deps import CurrentUser, SessionDep
-from grader.api.responses import AUTH, FORBIDDEN, INVALID, NOT_FOUND
+from grader.api.deps import CurrentUser, RowId, SessionDep
+from grader.api.responses import csv_ok, errors
 from grader.core.audit import create_audit_rerun
 from grader.models import AuditEntry, CaseRun, Submission, User
-from grader.schemas import CaseRunPublic, ErrorBody
+from grader.schemas import CaseRunPublic, UtcDateTime, as_utc
 
-router = APIRouter(tags=["audit"], responses={**AUTH, **FORBIDDEN, **NOT_FOUND})
+router = APIRouter(tags=["audit"], responses=errors(401, 403, 422))
 Classification = Literal["identical", "within_tolerance", "numeric_drift", "relation_changed", "provenance_violation",
                          "not_compared"]
 
@@ -30,7 +31,7 @@ class AuditEntryPublic(BaseModel):
     model_config = ConfigDict(from_attributes=True)
 
     id: int
-    created_at: datetime
+    created_at: UtcDateTime
     lesson: str
     case: str
     spec_key: str
@@ -61,6 +62,16 @@ def staff(user: User) -> None:
         raise HTTPException(status.HTTP_403_FORBIDDEN, "the audit log is for auditors and instructors")
 
 
+def _iso_date(value: Any) -> Any:
+    """Only YYYY-MM-DD, as documented (format: date); pydantic alone would also read `0` as 1970-01-01."""
+    if isinstance(value, str) and not re.fullmatch(r"[0-9]{4}-[0-9]{2}-[0-9]{2}", value):
+        raise ValueError("must be a date written YYYY-MM-DD")
+    return value
+
+
+IsoDate = Annotated[date, BeforeValidator(_iso_date)]
+
+
 class Filters(BaseModel):
     """Filters of the log (query parameters; unknown ones are refused)."""
 
@@ -71,8 +82,8 @@ class Filters(BaseModel):
     classification: Classification | None = None
     backends: Annotated[str | None, Field(pattern=r"^(cpu|rocm|cuda),(cpu|rocm|cuda)$",
                                           description="Two backends, e.g. cpu,cuda: entries comparing exactly these")] = None
-    since: date | None = None
-    until: date | None = None
+    since: IsoDate | None = None
+    until: IsoDate | None = None
 
 
 def filtered_entries(session: Session, user: User, filters: Filters, limit: int = 500) -> list[AuditEntry]:
@@ -96,7 +107,7 @@ def filtered_entries(session: Session, user: User, filters: Filters, limit: int 
 
 
 def entry_of(session: Session, user: User, entry_id: int) -> AuditEntry:
-    entry = session.get(AuditEntry, entry_id) if 0 < entry_id < 2**63 else None
+    entry = session.get(AuditEntry, entry_id)
     if entry is None or entry.course_id != user.course_id:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"audit entry {entry_id} not found")
     return entry
@@ -112,8 +123,7 @@ def list_entries(session: SessionDep, user: CurrentUser, filters: FilterDep):
     return filtered_entries(session, user, filters)
 
 
-@router.get("/audit/entries.csv", response_class=PlainTextResponse,
-            responses={200: {"content": {"text/csv": {}}, "description": "One row per entry"}})
+@router.get("/audit/entries.csv", response_class=Response, responses=csv_ok("One row per entry"))
 def export_entries(session: SessionDep, user: CurrentUser, filters: FilterDep):
     """The filtered log as CSV: one row per entry with both runs, variants, class and summary."""
     staff(user)
@@ -127,13 +137,13 @@ def entries_csv(entries: list[AuditEntry]) -> str:
                      "left_variant", "right_variant", "left_genesis", "right_genesis", "classification", "summary"])
     for e in entries:
         versions = [((p or {}).get("versions") or {}).get("genesis", "") for p in (e.left_provenance, e.right_provenance)]
-        writer.writerow([e.id, e.created_at.isoformat(), e.lesson, e.case, e.left_case_run_id, e.right_case_run_id or "",
+        writer.writerow([e.id, as_utc(e.created_at).isoformat(), e.lesson, e.case, e.left_case_run_id, e.right_case_run_id or "",
                          e.left_variant, e.right_variant, *versions, e.classification, e.summary])
     return out.getvalue()
 
 
-@router.get("/audit/entries/{entry_id}", response_model=AuditEntryPublic)
-def get_entry(entry_id: int, session: SessionDep, user: CurrentUser):
+@router.get("/audit/entries/{entry_id}", response_model=AuditEntryPublic, responses=errors(404))
+def get_entry(entry_id: RowId, session: SessionDep, user: CurrentUser):
     """One entry: both runs' provenance, every array and metric difference, the relations and the class."""
     staff(user)
     return entry_of(session, user, entry_id)
@@ -141,12 +151,12 @@ def get_entry(entry_id: int, session: SessionDep, user: CurrentUser):
 
 @router.post("/case-runs/{case_run_id}/audit-reruns", response_model=CaseRunPublic,
              status_code=status.HTTP_202_ACCEPTED,
-             responses={**INVALID, 409: {"model": ErrorBody, "description": "Nothing to compare, or no worker listens"}})
-def request_rerun(case_run_id: int, request: AuditRerunRequest, session: SessionDep, user: CurrentUser):
+             responses=errors(404, 409, 413, _409="Nothing to compare, or no worker listens"))
+def request_rerun(case_run_id: RowId, request: AuditRerunRequest, session: SessionDep, user: CurrentUser):
     """Re-measure a stored case run on another backend, precision or execution mode; the audit entry is written
     when it finishes. Refused at once (409) when no worker listens on the backend's queue."""
     staff(user)
-    source = session.get(CaseRun, case_run_id) if 0 < case_run_id < 2**63 else None
+    source = session.get(CaseRun, case_run_id)
     submission = session.get(Submission, source.submission_id) if source is not None else None
     if source is None or submission.course_id != user.course_id:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"case run {case_run_id} not found")

@@ -2,22 +2,22 @@
 
 from fastapi import APIRouter, HTTPException, status
 
-from grader.api.deps import CurrentUser, SessionDep
-from grader.api.responses import AUTH, FORBIDDEN, NOT_FOUND
+from grader.api.deps import CurrentUser, RowId, SessionDep
+from grader.api.responses import errors
 from grader.dashboard import ResendRefused, resend_case_run
-from grader.schemas import CaseRunPublic, ErrorBody
+from grader.schemas import CaseRunPublic
 
-router = APIRouter(prefix="/case-runs", tags=["case runs"], responses={**AUTH, **FORBIDDEN, **NOT_FOUND})
+router = APIRouter(prefix="/case-runs", tags=["case runs"], responses=errors(401, 403, 404, 422))
 
 
 @router.post("/{case_run_id}/resend", status_code=status.HTTP_202_ACCEPTED, response_model=CaseRunPublic,
-             responses={409: {"model": ErrorBody, "description": "The run is neither failed nor stuck, or its "
-                                                                  "submission is being graded or already graded"}})
-def resend(case_run_id: int, session: SessionDep, user: CurrentUser):
+             responses=errors(409, _409="The run is neither failed nor stuck, or its submission is being graded"))
+def resend(case_run_id: RowId, session: SessionDep, user: CurrentUser):
     """Re-send a failed or stuck case run with a new attempt on its own backend's queue (instructors of its course).
 
     The state change is recorded as a `resent` event naming who resent it and keeping the previous error; a failed
-    submission goes back to running and is graded when its runs finish."""
+    submission goes back to running, and a graded one keeps its grade in its history, superseded, and is graded
+    again when its runs finish."""
     try:
         return resend_case_run(session=session, case_run_id=case_run_id, user=user)
     except ResendRefused as refused:

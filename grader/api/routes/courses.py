@@ -4,14 +4,14 @@ from fastapi import APIRouter, HTTPException, status
 from sqlalchemy import select
 
 from grader import crud
-from grader.api.deps import CurrentUser, SessionDep
-from grader.api.responses import AUTH, FORBIDDEN, NOT_FOUND
+from grader.api.deps import CurrentUser, Name, SessionDep
+from grader.api.responses import errors
 from grader.api.views import submission_public
 from grader.models import Course
 from grader.dashboard import Dashboard, course_dashboard
 from grader.schemas import SubmissionPublic
 
-router = APIRouter(prefix="/courses", tags=["courses"], responses={**AUTH, **FORBIDDEN, **NOT_FOUND})
+router = APIRouter(prefix="/courses", tags=["courses"], responses=errors(401, 403, 404, 422))
 
 
 def staff_course(course: str, session, user) -> Course:
@@ -25,14 +25,14 @@ def staff_course(course: str, session, user) -> Course:
 
 
 @router.get("/{course}/submissions", response_model=list[SubmissionPublic])
-def course_submissions(course: str, session: SessionDep, user: CurrentUser):
+def course_submissions(course: Name, session: SessionDep, user: CurrentUser):
     """Every submission of a course (instructor or auditor of that course)."""
     row = staff_course(course, session, user)
     return [submission_public(s, session) for s in crud.visible_submissions(session=session, user=user, course=row)]
 
 
 @router.get("/{course}/dashboard", response_model=Dashboard)
-def dashboard(course: str, session: SessionDep, user: CurrentUser):
+def dashboard(course: Name, session: SessionDep, user: CurrentUser):
     """The class dashboard's data: states, failed or stuck runs (and whether each may be re-sent), roster of
     latest attempts, item analysis, predictions against measurements (H1, H4), key measurements per backend."""
     return course_dashboard(session=session, course=staff_course(course, session, user))

@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 from fastapi import APIRouter, HTTPException, status
-from fastapi.responses import PlainTextResponse
+from fastapi.responses import PlainTextResponse, Response
 from sqlalchemy import select
 
-from grader.api.deps import CurrentUser, SessionDep, SubmissionDep
-from grader.api.responses import AUTH, FORBIDDEN, NOT_FOUND
+from grader.api.deps import CurrentUser, Name, SessionDep, SubmissionDep
+from grader.api.responses import csv_ok, errors
 from grader.core.rubrics import current_grade
 from grader.models import Course, Grade, Submission
 
-router = APIRouter(tags=["exports"], responses={**AUTH, **FORBIDDEN, **NOT_FOUND})
+router = APIRouter(tags=["exports"], responses=errors(401, 403, 404, 422))
 
 
 def _report(grade: Grade):
@@ -25,8 +25,10 @@ def _instructor(user) -> None:
         raise HTTPException(status.HTTP_403_FORBIDDEN, "exports are for instructors")
 
 
-@router.get("/courses/{course}/grades.csv", response_class=PlainTextResponse)
-def course_grades_csv(course: str, session: SessionDep, user: CurrentUser):
+# response_class=Response: the success is CSV, but FastAPI would document the JSON errors under the response
+# class's media type; with no media type of its own they stay application/json.
+@router.get("/courses/{course}/grades.csv", response_class=Response, responses=csv_ok("One row per graded submission"))
+def course_grades_csv(course: Name, session: SessionDep, user: CurrentUser):
     """Every graded submission of the course, one CSV row per submission (latest first per student is the caller's)."""
     _instructor(user)
     row = session.scalar(select(Course).where(Course.name == course))
@@ -39,7 +41,7 @@ def course_grades_csv(course: str, session: SessionDep, user: CurrentUser):
     return PlainTextResponse(grades_csv([(s.student.name, _report(g)) for s, g in graded]), media_type="text/csv")
 
 
-@router.get("/submissions/{submission_id}/gradescope.json")
+@router.get("/submissions/{submission_id}/gradescope.json", responses=errors(409, _409="Not graded yet"))
 def gradescope(submission: SubmissionDep, session: SessionDep, user: CurrentUser) -> dict:
     """Gradescope results.json for one graded submission."""
     _instructor(user)

@@ -2,34 +2,40 @@
 
 from __future__ import annotations
 
-from pathlib import Path
+from pathlib import Path as FilePath
+from typing import Annotated, Literal
 
-from fastapi import APIRouter, HTTPException, status
+from fastapi import APIRouter, HTTPException, Path, status
 from fastapi.responses import FileResponse
 
-from grader.api.deps import SubmissionDep
-from grader.api.responses import NOT_FOUND
+from grader.api.deps import Name, SubmissionDep
+from grader.api.responses import errors, file_ok
 from grader.settings import settings
 
-router = APIRouter(prefix="/submissions/{submission_id}", tags=["files"], responses=NOT_FOUND)
+router = APIRouter(prefix="/submissions/{submission_id}", tags=["files"], responses=errors(401, 404, 422))
 EVIDENCE = {"arrays.npz": "application/octet-stream", "provenance.json": "application/json",
             "metrics.json": "application/json",
             "spec.json": "application/json", "stdout.txt": "text/plain", "stderr.txt": "text/plain"}
+# A file route only ever names a file by one of these shapes, so no path (.., /, NUL) reaches the filesystem.
+EvidenceName = Literal[tuple(EVIDENCE)]
+FigureName = Annotated[str, Path(pattern=r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,250}\.png$",
+                                 description="A figure's file name as listed by ../figures")]
 
 
-@router.get("/case-runs/{name}/files/{filename}", response_class=FileResponse)
-def case_run_file(submission: SubmissionDep, name: str, filename: str):
+@router.get("/case-runs/{name}/files/{filename}", response_class=FileResponse,
+            responses=file_ok("The file", *sorted(set(EVIDENCE.values()))))
+def case_run_file(submission: SubmissionDep, name: Name, filename: EvidenceName):
     """One evidence file of a case run (arrays.npz, provenance.json, metrics.json, spec.json, stdout, stderr)."""
     run = next((r for r in submission.case_runs if r.name == name), None)
     if run is None or filename not in EVIDENCE or not run.artifact_dir:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"no file {filename!r} for case run {name!r}")
-    path = Path(run.artifact_dir) / filename
+    path = FilePath(run.artifact_dir) / filename
     if not path.is_file():
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"{filename} was not written by case run {name!r}")
     return FileResponse(path, media_type=EVIDENCE[filename], filename=f"{submission.id}-{name}-{filename}")
 
 
-@router.get("/figures", response_model=list[str], responses={409: {"description": "Not graded yet"}})
+@router.get("/figures", response_model=list[str], responses=errors(409, _409="Not graded yet"))
 def list_figures(submission: SubmissionDep) -> list[str]:
     """Names of the lab figures the worker drew from this submission's measurements when it graded it."""
     if submission.status != "graded":
@@ -38,10 +44,10 @@ def list_figures(submission: SubmissionDep) -> list[str]:
     return sorted(p.name for p in folder.glob("*.png")) if folder.is_dir() else []
 
 
-@router.get("/figures/{filename}", response_class=FileResponse)
-def figure(submission: SubmissionDep, filename: str):
+@router.get("/figures/{filename}", response_class=FileResponse, responses=file_ok("The PNG figure", "image/png"))
+def figure(submission: SubmissionDep, filename: FigureName):
     """One lab figure (PNG)."""
     path = settings.figures_dir(submission.id) / filename
-    if "/" in filename or not filename.endswith(".png") or not path.is_file():
+    if not path.is_file():
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"no figure {filename!r}; list them at ../figures")
     return FileResponse(path, media_type="image/png")

@@ -12,19 +12,19 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 
-from grader.api.deps import CurrentUser, SessionDep
+from grader.api.deps import CurrentUser, Name, SessionDep
 from grader.api.errors import error, field_errors
-from grader.api.responses import AUTH, FORBIDDEN, INVALID, NOT_FOUND
+from grader.api.responses import errors
 from grader.api.routes.courses import staff_course
 from grader.core import rubrics as store
 from grader.models import Regrade, RubricVersion
 from grader.regrade import RegradePreview, RegradeRecord, commit_regrade, preview_regrade, record
-from grader.schemas import ErrorBody
+from grader.schemas import UtcDateTime
 
 LESSON = r"^L[0-9]{2}$"
 VERSION = r"^[0-9]+(\.[0-9]+)*$"
-CONFLICT = {409: {"model": ErrorBody, "description": "Refused by rubric governance, or a concurrent regrade"}}
-router = APIRouter(tags=["rubrics"], responses={**AUTH, **FORBIDDEN, **NOT_FOUND})
+CONFLICT = errors(409, _409="Refused by rubric governance, an archived version, or a concurrent regrade")
+router = APIRouter(tags=["rubrics"], responses=errors(401, 403, 422))
 
 
 class RubricVersionPublic(BaseModel):
@@ -33,7 +33,7 @@ class RubricVersionPublic(BaseModel):
     content_hash: str
     source: str
     published_by: str | None
-    published_at: Any
+    published_at: UtcDateTime
     review: dict[str, Any]
 
 
@@ -66,7 +66,7 @@ def list_versions(lesson: Annotated[str, Path(pattern=LESSON)], session: Session
 
 
 @router.post("/rubrics/versions", response_model=RubricVersionPublic, status_code=status.HTTP_201_CREATED,
-             responses={**INVALID, **CONFLICT})
+             responses={**errors(413), **CONFLICT})
 def publish(session: SessionDep, user: CurrentUser, content: Annotated[dict[str, Any], Body()]):
     """Publish a rubric version (the same fields as a rubric/lessons YAML file, as JSON). Governance refuses a
     change to a version any grade used and a changed tolerance without a new review record (409)."""
@@ -92,8 +92,8 @@ def _version_or_404(session, lesson: str, version: str):
 
 
 @router.get("/courses/{course}/regrade-preview", response_model=RegradePreview,
-            responses={**CONFLICT})
-def regrade_preview(course: str, session: SessionDep, user: CurrentUser,
+            responses={**errors(404), **CONFLICT})
+def regrade_preview(course: Name, session: SessionDep, user: CurrentUser,
                     version: Annotated[str, Query(pattern=VERSION, max_length=32)],
                     lesson: Annotated[str, Query(pattern=LESSON)] = "L03"):
     """Per student, the old and new totals and each item that changes and why; nothing is written."""
@@ -108,8 +108,8 @@ def regrade_preview(course: str, session: SessionDep, user: CurrentUser,
 
 
 @router.post("/courses/{course}/regrades", response_model=RegradeRecord, status_code=status.HTTP_201_CREATED,
-             responses={**INVALID, **CONFLICT})
-def regrade_commit(course: str, request: RegradeRequest, session: SessionDep, user: CurrentUser):
+             responses={**errors(404, 413), **CONFLICT})
+def regrade_commit(course: Name, request: RegradeRequest, session: SessionDep, user: CurrentUser):
     """Regrade the course's lesson under the version and keep the old grades; later submissions use it too."""
     from rubric import ArchivedRubric
 
@@ -127,8 +127,8 @@ def regrade_commit(course: str, request: RegradeRequest, session: SessionDep, us
     return record(regrade, row)
 
 
-@router.get("/courses/{course}/regrades", response_model=list[RegradeRecord])
-def regrades(course: str, session: SessionDep, user: CurrentUser):
+@router.get("/courses/{course}/regrades", response_model=list[RegradeRecord], responses=errors(404))
+def regrades(course: Name, session: SessionDep, user: CurrentUser):
     """Every committed regrade of the course, newest first, with who committed it and when."""
     row = staff_course(course, session, user)
     return [record(r, row) for r in session.scalars(

@@ -3,44 +3,35 @@
 from __future__ import annotations
 
 import logging
-import math
 
-from fastapi import APIRouter, HTTPException, status
+from fastapi import APIRouter, Depends, HTTPException, status
 from pydantic import ValidationError
 from sqlalchemy import select
 
 from grader import crud, dispatch, sheets
 from grader.api.deps import CurrentUser, SessionDep, SubmissionDep
 from grader.api.errors import error, field_errors
-from grader.api.responses import AUTH, FORBIDDEN, INVALID, NOT_FOUND
+from grader.api.ratelimit import limit_submissions
+from grader.api.responses import errors
 from grader.api.views import grade_history_public, grade_public, submission_public
 from grader.core.rubrics import current_grade, grade_history
 from grader.models import Event
 from grader.schemas import CaseRunPublic, EventPublic, GradeHistoryEntry, GradePublic, SubmissionCreate, SubmissionPublic
 
 log = logging.getLogger(__name__)
-router = APIRouter(prefix="/submissions", tags=["submissions"], responses=AUTH)
+router = APIRouter(prefix="/submissions", tags=["submissions"], responses=errors(401))
+ONE = errors(404, 422)
+NOT_GRADED = errors(409, _409="Not graded yet; the detail says the current status")
 
 
-def non_finite(value, path: str = "sheet") -> list[dict[str, str]]:
-    """Every NaN/Infinity in a JSON-like value, by path (JSON parsers here accept them; the grader must not)."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return [{"field": path, "rule": f"must be a finite number, got {value}"}]
-    if isinstance(value, dict):
-        return [e for k, v in value.items() for e in non_finite(v, f"{path}.{k}")]
-    if isinstance(value, list):
-        return [e for i, v in enumerate(value) for e in non_finite(v, f"{path}.{i}")]
-    return []
-
-
+# NaN/Infinity and deep nesting never reach this handler: grader.api.bodies refuses them for every JSON body.
 @router.post("", status_code=status.HTTP_202_ACCEPTED, response_model=SubmissionPublic,
-             responses={**INVALID, **FORBIDDEN})
+             responses=errors(403, 413, 422, 429), dependencies=[Depends(limit_submissions)])
 def create_submission(body: SubmissionCreate, session: SessionDep, user: CurrentUser):
-    """Validate a sheet and its case configs, store the submission and its case runs, then queue every case."""
+    """Validate a sheet and its case configs, store the submission and its case runs, then queue every case.
+    Each token may submit at most RATE_LIMIT_SUBMISSIONS (429 with Retry-After past it)."""
     if user.role not in ("student", "instructor"):
         raise HTTPException(status.HTTP_403_FORBIDDEN, f"role {user.role} may not submit")
-    if problems := non_finite(body.sheet):
-        return error(422, "invalid sheet", problems)
     try:
         sheet = sheets.parse_sheet(body.sheet)
         specs = sheets.cases_to_run(sheet)
@@ -69,14 +60,14 @@ def list_submissions(session: SessionDep, user: CurrentUser):
     return [submission_public(s, session) for s in crud.visible_submissions(session=session, user=user)]
 
 
-@router.get("/{submission_id}", response_model=SubmissionPublic, responses=NOT_FOUND)
+@router.get("/{submission_id}", response_model=SubmissionPublic, responses=ONE)
 def get_submission(submission: SubmissionDep, session: SessionDep):
     """Status and progress of one submission."""
     return submission_public(submission, session)
 
 
 @router.get("/{submission_id}/grade", response_model=GradePublic,
-            responses={**NOT_FOUND, 409: {"description": "Not graded yet; the body says the current status"}})
+            responses={**ONE, **NOT_GRADED})
 def get_grade(submission: SubmissionDep, session: SessionDep):
     """The grade with per-item score, feedback and measured evidence."""
     grade = current_grade(session, submission.id)
@@ -86,19 +77,19 @@ def get_grade(submission: SubmissionDep, session: SessionDep):
     return grade_public(grade)
 
 
-@router.get("/{submission_id}/grades", response_model=list[GradeHistoryEntry], responses=NOT_FOUND)
+@router.get("/{submission_id}/grades", response_model=list[GradeHistoryEntry], responses=ONE)
 def list_grades(submission: SubmissionDep, session: SessionDep):
     """Every grade the submission has had, oldest first: the first grading, then one per committed regrade."""
     return grade_history_public(grade_history(session, submission.id))
 
 
-@router.get("/{submission_id}/case-runs", response_model=list[CaseRunPublic], responses=NOT_FOUND)
+@router.get("/{submission_id}/case-runs", response_model=list[CaseRunPublic], responses=ONE)
 def list_case_runs(submission: SubmissionDep):
     """Every case run with its state, requested and actual backend, reuse and provenance."""
     return submission.case_runs
 
 
-@router.get("/{submission_id}/events", response_model=list[EventPublic], responses=NOT_FOUND)
+@router.get("/{submission_id}/events", response_model=list[EventPublic], responses=ONE)
 def list_events(submission: SubmissionDep, session: SessionDep):
     """Every timestamped state change of the submission and its case runs."""
     return session.scalars(select(Event).where(Event.submission_id == submission.id).order_by(Event.id)).all()
