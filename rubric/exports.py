@@ -16,21 +16,28 @@ def _number(value: float) -> str:
     return f"{value:g}"
 
 
-def grades_csv(reports: Sequence[tuple[str, GradeReport]]) -> str:
+def grades_csv(reports: Sequence[tuple[str, GradeReport]], *,
+               submissions: Sequence[tuple[int, str]] | None = None) -> str:
     """CSV text: fixed columns, then one score column per rubric item in rubric order.
 
+    `submissions` (one (id, submitted_at ISO time) per report) adds the columns submission_id and submitted_at
+    after the student, so a row can be traced to the attempt it grades.
     An inconclusive item is written as an empty cell: it is not counted, and a 0 would read as a penalty.
     Reports may come from different rubric versions; the item columns are their union, first seen first.
     """
+    if submissions is not None and len(submissions) != len(reports):
+        raise ValueError(f"{len(submissions)} submissions for {len(reports)} reports")
     item_ids: list[str] = []
     for _, report in reports:
         item_ids += [i.id for i in report.items if i.id not in item_ids]
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow([*CSV_FIXED_COLUMNS, *item_ids])
-    for student, report in reports:
+    traced = ["submission_id", "submitted_at"] if submissions is not None else []
+    writer.writerow([CSV_FIXED_COLUMNS[0], *traced, *CSV_FIXED_COLUMNS[1:], *item_ids])
+    for n, (student, report) in enumerate(reports):
         scores = {i.id: ("" if i.verdict == "inconclusive" else _number(i.score)) for i in report.items}
-        writer.writerow([student, report.rubric_version, _number(report.total), _number(report.max_total),
+        trace = [str(submissions[n][0]), submissions[n][1]] if submissions is not None else []
+        writer.writerow([student, *trace, report.rubric_version, _number(report.total), _number(report.max_total),
                          str(report.complete).lower(), *(scores.get(i, "") for i in item_ids)])
     return out.getvalue()
 

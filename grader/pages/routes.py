@@ -151,7 +151,7 @@ def evidence_file(request: Request, submission_id: int, name: str, filename: str
 
 
 @router.get("/courses/{course}/grades.csv")
-def grades_csv_download(request: Request, course: str, session: SessionDep, user: PageUser):
+def grades_csv_download(request: Request, course: str, session: SessionDep, user: PageUser, latest: bool = False):
     if user is None:
         return _sign_in_redirect(request)
     from fastapi import HTTPException
@@ -159,6 +159,22 @@ def grades_csv_download(request: Request, course: str, session: SessionDep, user
     from grader.api.routes.exports import course_grades_csv
 
     try:
-        return course_grades_csv(course, session, user)
+        return course_grades_csv(course, session, user, latest=latest)
     except HTTPException:
         return _not_found(request, user, f"grades for course {course}")
+
+
+@router.get("/submissions/{submission_id}/gradescope.json")
+def gradescope_download(request: Request, submission_id: int, session: SessionDep, user: PageUser):
+    """Gradescope results.json of one graded submission, for its course's instructors."""
+    if user is None:
+        return _sign_in_redirect(request)
+    from fastapi.responses import JSONResponse
+
+    from grader.api.routes.exports import gradescope
+
+    submission = _readable(session, user, submission_id)
+    if submission is None or user.role != "instructor" or current_grade(session, submission.id) is None:
+        return _not_found(request, user, f"Gradescope results of submission {submission_id}")
+    return JSONResponse(gradescope(submission, session, user), headers={
+        "Content-Disposition": f'attachment; filename="submission-{submission.id}-gradescope-results.json"'})

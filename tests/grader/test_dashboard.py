@@ -295,3 +295,32 @@ def test_only_the_current_grade_counts_a_superseded_one_stays_out(api):
     h4 = next(p for p in data["predictions"] if p["item"] == "H4")
     assert {r["predicted_as_written"] for r in h4["rows"]} == {"30 cm"} and len(h4["rows"]) == 4
     assert data["roster"][0]["total"] == 2 and data["analysis"]["n_reports"] == 1
+
+
+def test_the_grades_csv_traces_each_row_to_its_attempt_and_latest_keeps_one_per_student(api):
+    import csv
+    import io
+
+    first, bob, latest = _submit(api, "alice"), _submit(api, "bob"), _submit(api, "alice")
+    h1 = {"baseline": {"low": 0.5, "high": 0.8}, "modified": {"low": 0.3, "high": 0.8}}
+    h4 = {run: {"low": "not_stopped", "high": "not_stopped"} for run in ("baseline", "modified")}
+    for submission, who in ((first, "alice"), (bob, "bob"), (latest, "alice")):
+        _grade(submission, _report(who, h1, h4, {}, {}))
+    every = api.client.get("/v1/courses/l03/grades.csv", headers=api.as_("prof"))
+    rows = list(csv.DictReader(io.StringIO(every.text)))
+    assert [(r["student"], int(r["submission_id"])) for r in rows] == [("alice", first), ("bob", bob), ("alice", latest)]
+    assert all(r["submitted_at"].endswith("+00:00") for r in rows)
+    newest = api.client.get("/v1/courses/l03/grades.csv?latest=true", headers=api.as_("prof"))
+    assert "latest-grades.csv" in newest.headers["content-disposition"]
+    rows = list(csv.DictReader(io.StringIO(newest.text)))
+    assert [(r["student"], int(r["submission_id"])) for r in rows] == [("alice", latest), ("bob", bob)]
+    # The dashboard page links both, and each graded roster row its Gradescope results.json.
+    api.client.post("/sign-in", data={"token": api.tokens["prof"], "next": "/courses/l03/dashboard"})
+    page = api.client.get("/courses/l03/dashboard")
+    assert "/courses/l03/grades.csv?latest=true" in page.text and f"/submissions/{latest}/gradescope.json" in page.text
+    download = api.client.get(f"/submissions/{latest}/gradescope.json")
+    assert download.status_code == 200 and download.json()["score"] == api.client.get(f"/v1/submissions/{latest}/grade", headers=api.as_("prof")).json()["total"]
+    assert "attachment" in download.headers["content-disposition"]
+    api.client.post("/sign-out")
+    api.client.post("/sign-in", data={"token": api.tokens["alice"], "next": "/submissions"})
+    assert api.client.get(f"/submissions/{latest}/gradescope.json").status_code == 404  # instructors only

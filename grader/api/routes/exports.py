@@ -27,9 +27,11 @@ def _instructor(user) -> None:
 
 # response_class=Response: the success is CSV, but FastAPI would document the JSON errors under the response
 # class's media type; with no media type of its own they stay application/json.
-@router.get("/courses/{course}/grades.csv", response_class=Response, responses=csv_ok("One row per graded submission"))
-def course_grades_csv(course: Name, session: SessionDep, user: CurrentUser):
-    """Every graded submission of the course, one CSV row per submission (latest first per student is the caller's)."""
+@router.get("/courses/{course}/grades.csv", response_class=Response,
+            responses=csv_ok("One row per graded submission, or per student with latest=true"))
+def course_grades_csv(course: Name, session: SessionDep, user: CurrentUser, latest: bool = False):
+    """The course's current grades as CSV, with each row's submission id and time (UTC): every graded submission in
+    submission order, or with `latest=true` each student's latest graded attempt (the one the dashboard counts)."""
     _instructor(user)
     row = session.scalar(select(Course).where(Course.name == course))
     if row is None or row.id != user.course_id:
@@ -37,8 +39,14 @@ def course_grades_csv(course: Name, session: SessionDep, user: CurrentUser):
     from rubric.exports import grades_csv
 
     graded = session.execute(select(Submission, Grade).join(Grade, Grade.submission_id == Submission.id)
-                             .where(Submission.course_id == row.id, Grade.superseded_at.is_(None)).order_by(Submission.id)).all()
-    return PlainTextResponse(grades_csv([(s.student.name, _report(g)) for s, g in graded]), media_type="text/csv")
+                             .where(Submission.course_id == row.id, Grade.superseded_at.is_(None))
+                             .order_by(Submission.id)).all()
+    if latest:
+        graded = sorted({s.student_id: (s, g) for s, g in graded}.values(), key=lambda sg: sg[0].student.name)
+    text = grades_csv([(s.student.name, _report(g)) for s, g in graded],
+                      submissions=[(s.id, f"{s.created_at.isoformat()}+00:00") for s, _ in graded])
+    name = f"{row.name}-{'latest' if latest else 'all'}-grades.csv"
+    return PlainTextResponse(text, media_type="text/csv", headers={"Content-Disposition": f'attachment; filename="{name}"'})
 
 
 @router.get("/submissions/{submission_id}/gradescope.json", responses=errors(409, _409="Not graded yet"))
