@@ -59,6 +59,12 @@ class Client:
     def commit_regrade(self, course: str, version: str, lesson: str = "L03") -> dict:
         return self._ok(self.http.post(f"/courses/{course}/regrades", json={"version": version, "lesson": lesson}))
 
+    def create_assignment(self, course: str, body: dict) -> dict:
+        return self._ok(self.http.post(f"/courses/{course}/assignments", json=body))
+
+    def assignments(self, course: str) -> list:
+        return self._ok(self.http.get(f"/courses/{course}/assignments"))
+
     def wait(self, submission_id: int, *, poll_s: float = 1.0, on_progress: Callable[[dict], None] | None = None,
              timeout_s: float | None = None) -> dict:
         """Poll until graded or failed; on_progress gets every status body."""

@@ -1,5 +1,5 @@
-"""Database tables (SQLAlchemy 2): courses, users and tokens, submissions, case runs, measurements, rubric versions,
-grades with their history, regrades, events.
+"""Database tables (SQLAlchemy 2): courses, users and tokens, assignments and extensions, submissions, case runs,
+measurements, rubric versions, grades with their history, regrades, events.
 
 All timestamps are naive UTC. Every state change of a submission or case run also appends an Event row.
 """
@@ -15,6 +15,9 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 ROLES = ("student", "instructor", "auditor")
 SUBMISSION_STATES = ("running", "grading", "graded", "failed")
 CASE_RUN_STATES = ("queued", "running", "done", "failed")
+ASSIGNMENT_ITEMS = ("checkpoints", "exercises", "sheet")
+COUNTED_ATTEMPTS = ("latest", "best")
+VISIBILITIES = ("immediate", "after_due", "on_release")
 
 
 def utcnow() -> datetime:
@@ -60,6 +63,53 @@ class ApiToken(Base):
     user: Mapped[User] = relationship(lazy="joined")
 
 
+class Assignment(Base):
+    """What a course asks of its students for one lesson: which items, when, how late work and attempts count.
+
+    `items`: checkpoints (the rubric items of part "checkpoint"), exercises (every other item) or sheet (all).
+    """
+
+    __tablename__ = "assignments"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    course_id: Mapped[int] = mapped_column(ForeignKey("courses.id"), index=True)
+    title: Mapped[str] = mapped_column(String(128))
+    lesson: Mapped[str] = mapped_column(String(16))
+    items: Mapped[str] = mapped_column(String(16))
+    open_at: Mapped[datetime] = mapped_column(DateTime)
+    due_at: Mapped[datetime] = mapped_column(DateTime)
+    hard_close_at: Mapped[datetime] = mapped_column(DateTime)
+    late_penalty_per_day: Mapped[float] = mapped_column(Float, default=0.0)  # fraction of the raw score per day
+    late_penalty_cap: Mapped[float | None] = mapped_column(Float)  # the most the penalty may take, as a fraction
+    max_attempts: Mapped[int | None] = mapped_column(Integer)
+    counted_attempt: Mapped[str] = mapped_column(String(8))  # latest | best
+    visibility: Mapped[str] = mapped_column(String(16))  # immediate | after_due | on_release
+    released_at: Mapped[datetime | None] = mapped_column(DateTime)
+    created_by_id: Mapped[int] = mapped_column(ForeignKey("users.id"))
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+    course: Mapped[Course] = relationship(lazy="joined")
+    created_by: Mapped[User] = relationship(lazy="joined")
+
+
+class Extension(Base):
+    """One student's own dates for one assignment, with who granted them; the latest grant replaces the earlier."""
+
+    __tablename__ = "extensions"
+    __table_args__ = (UniqueConstraint("assignment_id", "student_id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    assignment_id: Mapped[int] = mapped_column(ForeignKey("assignments.id"), index=True)
+    student_id: Mapped[int] = mapped_column(ForeignKey("users.id"))
+    due_at: Mapped[datetime] = mapped_column(DateTime)
+    hard_close_at: Mapped[datetime] = mapped_column(DateTime)
+    granted_by_id: Mapped[int] = mapped_column(ForeignKey("users.id"))
+    granted_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+    student: Mapped[User] = relationship(foreign_keys=[student_id], lazy="joined")
+    granted_by: Mapped[User] = relationship(foreign_keys=[granted_by_id], lazy="joined")
+
+
 class Submission(Base):
     __tablename__ = "submissions"
 
@@ -75,6 +125,11 @@ class Submission(Base):
     updated_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
     grading_at: Mapped[datetime | None] = mapped_column(DateTime)
     graded_at: Mapped[datetime | None] = mapped_column(DateTime)
+    # Set for a submission to an assignment: its attempt number there (1, 2, ...) and how late it came, in seconds
+    # after the due date that applied to its student (0 when on time).
+    assignment_id: Mapped[int | None] = mapped_column(ForeignKey("assignments.id"), index=True)
+    attempt: Mapped[int | None] = mapped_column(Integer)
+    late_seconds: Mapped[int | None] = mapped_column(Integer)
 
     student: Mapped[User] = relationship(lazy="joined")
     # The runs that grade it; audit re-runs of its runs (purpose "audit") are kept apart and never graded.

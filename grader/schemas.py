@@ -5,7 +5,8 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, AwareDatetime, BaseModel, ConfigDict, Field, ValidationInfo, field_validator
+from pydantic_core import PydanticCustomError
 
 
 def as_utc(value: datetime) -> datetime:
@@ -154,3 +155,95 @@ class Health(BaseModel):
     status: Literal["ok"]
     database: str
     version: str
+
+
+def _naive_utc(value: datetime) -> datetime:
+    """An instant with an offset, as the naive UTC the tables store; one that leaves the calendar is refused."""
+    try:
+        return value.astimezone(UTC).replace(tzinfo=None)
+    except OverflowError:
+        raise ValueError("outside the representable range of dates") from None
+
+
+# An instant the API accepts: ISO 8601 with a UTC offset (a time without one is refused, never guessed).
+UtcInput = Annotated[AwareDatetime, AfterValidator(_naive_utc)]
+
+
+class AssignmentCreate(Strict):
+    """An assignment of one lesson in the instructor's course. Times are ISO 8601 with an offset."""
+
+    title: str = Field(min_length=1, max_length=128)
+    lesson: Literal["L03"] = "L03"
+    items: Literal["checkpoints", "exercises", "sheet"] = Field(
+        "sheet", description="checkpoints: the lesson's concept checkpoints only (no case is run); exercises: every "
+                             "other item (predictions, hands-on, extension); sheet: all items")
+    open_at: UtcInput
+    due_at: UtcInput
+    hard_close_at: UtcInput = Field(description="No submission is accepted after it (extensions aside)")
+    late_penalty_per_day: float = Field(0.0, ge=0.0, le=1.0, allow_inf_nan=False,
+                                        description="Fraction of the raw score taken per day (or part) late")
+    late_penalty_cap: float | None = Field(None, ge=0.0, le=1.0, allow_inf_nan=False,
+                                           description="The most the late penalty may take, as a fraction")
+    max_attempts: int | None = Field(None, ge=1, le=1000)
+    counted_attempt: Literal["latest", "best"] = "latest"
+    visibility: Literal["immediate", "after_due", "on_release"] = "immediate"
+
+    @field_validator("due_at")
+    @classmethod
+    def _due_after_open(cls, value: datetime, info: ValidationInfo) -> datetime:
+        if "open_at" in info.data and not info.data["open_at"] < value:
+            raise PydanticCustomError("dates", "due_at must be after open_at")
+        return value
+
+    @field_validator("hard_close_at")
+    @classmethod
+    def _close_after_due(cls, value: datetime, info: ValidationInfo) -> datetime:
+        if "due_at" in info.data and not info.data["due_at"] <= value:
+            raise PydanticCustomError("dates", "hard_close_at must not be before due_at")
+        return value
+
+
+class ExtensionCreate(Strict):
+    """One student's own due date and hard close for an assignment (replaces an earlier extension of theirs)."""
+
+    student: str = Field(min_length=1, max_length=64)
+    due_at: UtcInput
+    hard_close_at: UtcInput
+
+    @field_validator("hard_close_at")
+    @classmethod
+    def _close_after_due(cls, value: datetime, info: ValidationInfo) -> datetime:
+        if "due_at" in info.data and not info.data["due_at"] <= value:
+            raise PydanticCustomError("dates", "hard_close_at must not be before due_at")
+        return value
+
+
+class ExtensionPublic(BaseModel):
+    assignment_id: int
+    student: str
+    due_at: UtcDateTime
+    hard_close_at: UtcDateTime
+    granted_by: str
+    granted_at: UtcDateTime
+
+
+class AssignmentPublic(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    id: int
+    course: str
+    title: str
+    lesson: str
+    items: str
+    item_ids: list[str] = Field(description="The rubric items the assignment grades")
+    open_at: UtcDateTime
+    due_at: UtcDateTime
+    hard_close_at: UtcDateTime
+    late_penalty_per_day: float
+    late_penalty_cap: float | None
+    max_attempts: int | None
+    counted_attempt: str
+    visibility: str
+    released_at: UtcDateTime | None
+    created_by: str
+    created_at: UtcDateTime

@@ -1,0 +1,102 @@
+"""Assignments: which rubric items one holds, the dates that apply to a student, whether a submission may be taken
+now, and how a late attempt's penalty turns its raw score into the counted one."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from datetime import datetime
+
+from sqlalchemy import func, select
+from sqlalchemy.orm import Session
+
+from grader.models import Assignment, Extension, Submission, User
+
+DAY_S = 86400
+
+
+def item_ids(lesson: str, items: str) -> list[str]:
+    """The rubric items an assignment holds: checkpoints (part "checkpoint"), exercises (every other part), sheet."""
+    from rubric import load_rubric
+
+    rubric = load_rubric(lesson)
+    if items == "checkpoints":
+        return [i.id for i in rubric.items if i.part == "checkpoint"]
+    if items == "exercises":
+        return [i.id for i in rubric.items if i.part != "checkpoint"]
+    return [i.id for i in rubric.items]
+
+
+@dataclass(frozen=True)
+class Dates:
+    due_at: datetime
+    hard_close_at: datetime
+    extension: Extension | None
+
+
+def dates_for(*, session: Session, assignment: Assignment, student: User) -> Dates:
+    """The assignment's due date and hard close, or the student's extension when one was granted."""
+    ext = session.scalar(select(Extension).where(Extension.assignment_id == assignment.id,
+                                                 Extension.student_id == student.id))
+    if ext is not None:
+        return Dates(ext.due_at, ext.hard_close_at, ext)
+    return Dates(assignment.due_at, assignment.hard_close_at, None)
+
+
+def attempts_used(*, session: Session, assignment: Assignment, student: User) -> int:
+    return session.scalar(select(func.count()).select_from(Submission).where(
+        Submission.assignment_id == assignment.id, Submission.student_id == student.id))
+
+
+class Refused(Exception):
+    """A submission the assignment does not take now; `field` and `rule` say why (with the time that applies)."""
+
+    def __init__(self, field: str, rule: str):
+        super().__init__(rule)
+        self.field, self.rule = field, rule
+
+
+def iso(at: datetime) -> str:
+    return at.isoformat() + "+00:00"
+
+
+def admit(*, session: Session, assignment: Assignment, student: User, now: datetime) -> tuple[int, int]:
+    """(attempt number, seconds late) for a submission at `now` (naive UTC); Refused before open, after the hard
+    close that applies to the student, or beyond the attempt limit."""
+    if now < assignment.open_at:
+        raise Refused("assignment_id", f"assignment {assignment.id} opens at {iso(assignment.open_at)}; "
+                                       f"it is {iso(now)}")
+    dates = dates_for(session=session, assignment=assignment, student=student)
+    if now > dates.hard_close_at:
+        whose = "your extension's" if dates.extension else "its"
+        raise Refused("assignment_id", f"assignment {assignment.id} closed at {iso(dates.hard_close_at)} ({whose} "
+                                       f"hard close); it is {iso(now)}")
+    used = attempts_used(session=session, assignment=assignment, student=student)
+    if assignment.max_attempts is not None and used >= assignment.max_attempts:
+        raise Refused("assignment_id", f"assignment {assignment.id} allows {assignment.max_attempts} attempts; "
+                                       f"{used} already submitted")
+    late = max(0, math.ceil((now - dates.due_at).total_seconds()))
+    return used + 1, late
+
+
+def penalty_fraction(assignment: Assignment, late_seconds: int) -> float:
+    """Per day late, any part of a day counting as a day, capped by the assignment's cap (and by 1)."""
+    if late_seconds <= 0:
+        return 0.0
+    fraction = math.ceil(late_seconds / DAY_S) * assignment.late_penalty_per_day
+    cap = 1.0 if assignment.late_penalty_cap is None else assignment.late_penalty_cap
+    return min(fraction, cap, 1.0)
+
+
+@dataclass(frozen=True)
+class Counted:
+    submission: Submission
+    raw: float
+    max_total: float
+    penalty: float  # the fraction taken
+    counted: float
+
+
+def counted_score(assignment: Assignment, submission: Submission, raw: float, max_total: float) -> Counted:
+    penalty = penalty_fraction(assignment, submission.late_seconds or 0)
+    return Counted(submission, raw, max_total, penalty, round(raw * (1.0 - penalty), 6))

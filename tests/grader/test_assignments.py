@@ -1,0 +1,111 @@
+"""Assignments on the in-process app (SQLite): creation and its refusals, the CLI, submitting to one."""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime, timedelta
+
+import pytest
+from sqlalchemy import func, select
+
+NOW = datetime.now(UTC).replace(microsecond=0)
+
+
+def at(days: float = 0, hours: float = 0) -> str:
+    return (NOW + timedelta(days=days, hours=hours)).isoformat()
+
+
+def body(**over) -> dict:
+    return {"title": "Checkpoints", "items": "checkpoints", "open_at": at(-1), "due_at": at(1), "hard_close_at": at(3),
+            **over}
+
+
+def create(api, who="prof", course="l03", **over):
+    return api.client.post(f"/v1/courses/{course}/assignments", json=body(**over), headers=api.as_(who))
+
+
+def assignment_count() -> int:
+    from grader.core.db import new_session
+    from grader.models import Assignment
+
+    with new_session() as session:
+        return session.scalar(select(func.count()).select_from(Assignment))
+
+
+def test_an_instructor_creates_an_assignment_everyone_in_the_course_lists_it(api):
+    response = create(api, open_at="2026-12-01T10:00:00+01:00", due_at="2026-12-08T09:00:00Z",
+                      hard_close_at="2026-12-10T09:00:00Z", late_penalty_per_day=0.1, late_penalty_cap=0.3,
+                      max_attempts=2, counted_attempt="best", visibility="after_due")
+    assert response.status_code == 201, response.text
+    row = response.json()
+    assert row["open_at"] in ("2026-12-01T09:00:00Z", "2026-12-01T09:00:00+00:00")  # stored UTC, returned with offset
+    assert row["item_ids"] == ["C1", "C2", "C3", "C4", "C5", "C6", "C7", "C8"]
+    assert (row["max_attempts"], row["counted_attempt"], row["visibility"], row["created_by"]) == (
+        2, "best", "after_due", "prof")
+    for who in ("alice", "tess", "prof"):
+        listed = api.client.get("/v1/courses/l03/assignments", headers=api.as_(who))
+        assert listed.status_code == 200 and [a["id"] for a in listed.json()] == [row["id"]]
+        assert api.client.get(f"/v1/assignments/{row['id']}", headers=api.as_(who)).json() == row
+
+
+@pytest.mark.parametrize("items, part_ids", [("exercises", 18), ("sheet", 26)])
+def test_exercises_are_every_item_but_the_checkpoints(api, items, part_ids):
+    row = create(api, items=items).json()
+    assert len(row["item_ids"]) == part_ids and ("C1" in row["item_ids"]) == (items == "sheet")
+
+
+@pytest.mark.parametrize("over, field, rule", [
+    ({"due_at": "2026-12-08T09:00:00"}, "due_at", "timezone"),
+    ({"due_at": at(-2)}, "due_at", "due_at must be after open_at"),
+    ({"hard_close_at": at(0)}, "hard_close_at", "hard_close_at must not be before due_at"),
+    ({"late_penalty_per_day": 1.5}, "late_penalty_per_day", "less than or equal to 1"),
+    ({"late_penalty_cap": -0.1}, "late_penalty_cap", "greater than or equal to 0"),
+    ({"max_attempts": 0}, "max_attempts", "greater than or equal to 1"),
+    ({"items": "everything"}, "items", "checkpoints"),
+    ({"counted_attempt": "first"}, "counted_attempt", "latest"),
+    ({"visibility": "never"}, "visibility", "on_release"),
+    ({"open_at": "0001-01-01T00:00:00+05:00"}, "open_at", "outside the representable range"),
+    ({"title": ""}, "title", "at least 1"),
+    ({"deadline": at(1)}, "deadline", "Extra inputs"),
+])
+def test_bad_assignments_are_refused_naming_field_and_rule_nothing_stored(api, over, field, rule):
+    response = create(api, **over)
+    assert response.status_code == 422, response.text
+    assert any(e["field"] == field and rule in e["rule"] for e in response.json()["errors"]), response.json()
+    assert assignment_count() == 0
+
+
+def test_only_an_instructor_of_the_course_creates(api):
+    assert create(api, who="alice").status_code == 403
+    assert create(api, who="tess").status_code == 403
+    assert create(api, who="eve").status_code == 404  # another course's instructor learns nothing
+    assert create(api, who="eve", course="other").status_code == 201
+    assert assignment_count() == 1
+    other = api.client.get("/v1/courses/other/assignments", headers=api.as_("eve")).json()[0]
+    assert api.client.get(f"/v1/assignments/{other['id']}", headers=api.as_("alice")).status_code == 404
+    assert api.client.get("/v1/assignments/2147483648", headers=api.as_("alice")).status_code == 422
+
+
+def test_the_cli_creates_and_lists_over_http(api, monkeypatch):
+    from click.testing import CliRunner
+    from fastapi.testclient import TestClient
+
+    from grader.cli import assignment, main
+    from grader.client import Client
+    from grader.main import app
+
+    def client(url, token):
+        c = Client(url, token)
+        c.http = TestClient(app, base_url="http://testserver/v1", headers={"Authorization": f"Bearer {token}"})
+        return c
+
+    monkeypatch.setattr(assignment, "_client", client)
+    made = CliRunner().invoke(main, ["assignment", "create", "l03", "--title", "Lab 3", "--items", "sheet",
+                                     "--open", at(-1), "--due", at(1), "--close", at(2), "--penalty-per-day", "0.1",
+                                     "--max-attempts", "3", "--token", api.tokens["prof"]])
+    assert made.exit_code == 0, made.output
+    assert "assignment #1 'Lab 3' (sheet: A1," in made.output
+    listed = CliRunner().invoke(main, ["assignment", "list", "l03", "--token", api.tokens["alice"]])
+    assert listed.exit_code == 0 and "Lab 3" in listed.output and "attempts 3" in listed.output
+    refused = CliRunner().invoke(main, ["assignment", "create", "l03", "--title", "x", "--open", at(1), "--due", at(0),
+                                        "--close", at(2), "--token", api.tokens["prof"]])
+    assert refused.exit_code != 0 and "due_at: due_at must be after open_at" in refused.output
