@@ -100,3 +100,48 @@ class Counted:
 def counted_score(assignment: Assignment, submission: Submission, raw: float, max_total: float) -> Counted:
     penalty = penalty_fraction(assignment, submission.late_seconds or 0)
     return Counted(submission, raw, max_total, penalty, round(raw * (1.0 - penalty), 6))
+
+
+def lesson_results(*, session: Session, backend: str = "cpu") -> dict:
+    """The lesson's own cases as already measured for any submission (the latest valid run of each on `backend`),
+    read back from storage: what a checkpoint sheet is graded on without running anything. A case never measured
+    yet is absent, and the items that need it say 'not measured'."""
+    from rubric import BASELINE_CASES
+    from rubric.scoring import LESSON_RUNS
+
+    from grader.core.audit import spec_key
+    from grader.core.lifecycle import stored_result
+    from grader.models import CaseRun
+
+    results = {}
+    for name in LESSON_RUNS:
+        spec = BASELINE_CASES[name].model_dump(mode="json", exclude_computed_fields=True)
+        run = session.scalar(select(CaseRun).where(
+            CaseRun.spec_key == spec_key(spec), CaseRun.backend == backend, CaseRun.precision == spec["precision"],
+            CaseRun.purpose == "grading", CaseRun.status == "done", CaseRun.result_status == "ok")
+            .order_by(CaseRun.id.desc()).limit(1))
+        if run is not None:
+            results[name] = stored_result(run)
+    return results
+
+
+def grade_now(*, session: Session, submission: Submission, sheet, backend: str = "cpu"):
+    """Grade a submission that needs no case (a checkpoint sheet) in the request that stores it; the caller commits."""
+    import time
+
+    import rubric
+
+    from grader.core.lifecycle import touch
+    from grader.core.rubrics import course_rubric
+    from grader.models import Grade, utcnow
+
+    started = time.perf_counter()
+    book = course_rubric(session, submission.course_id, submission.lesson)
+    report = rubric.grade_sheet(sheet, lesson_results(session=session, backend=backend), book)
+    grade = Grade(submission_id=submission.id, rubric_lesson=book.lesson, rubric_version=str(book.version),
+                  rubric_hash=book.content_hash, total=report.total, max_total=report.max_total,
+                  report=report.model_dump(mode="json"), execution_s=time.perf_counter() - started)
+    session.add(grade)
+    submission.graded_at = utcnow()
+    touch(submission, "graded", f"{report.total:g} / {report.max_total:g} (no case to run)", session=session)
+    return grade

@@ -132,6 +132,12 @@ class Submission(Base):
     late_seconds: Mapped[int | None] = mapped_column(Integer)
 
     student: Mapped[User] = relationship(lazy="joined")
+    assignment: Mapped[Assignment | None] = relationship()
+    @property
+    def items(self) -> str:
+        """Which answers its sheet holds: its assignment's part, or the whole sheet."""
+        return self.assignment.items if self.assignment is not None else "sheet"
+
     # The runs that grade it; audit re-runs of its runs (purpose "audit") are kept apart and never graded.
     case_runs: Mapped[list[CaseRun]] = relationship(
         primaryjoin="and_(Submission.id == CaseRun.submission_id, CaseRun.purpose == 'grading')",

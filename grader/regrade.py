@@ -118,7 +118,7 @@ def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric):
     if grade.rubric_version == new_rubric.version:
         return RegradeEntry(**entry, skipped=f"already graded under v{new_rubric.version}"), None
     try:
-        sheet = rubric.parse_sheet(submission.sheet)
+        sheet = rubric.parse_sheet(submission.sheet, submission.items)
         measured = {run.name for run in submission.case_runs}
         missing = sorted(spec.name for spec in rubric.cases_to_run(sheet, new_rubric) if spec.name not in measured)
         if missing:

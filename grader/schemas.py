@@ -28,6 +28,9 @@ class SubmissionCreate(Strict):
     backend: Literal["cpu", "rocm", "cuda"] | None = Field(
         None, description="Run every case on this backend instead of the one each config names. Never substituted.")
     force_rerun: bool = Field(False, description="Measure every case afresh instead of reusing stored measurements.")
+    assignment_id: int | None = Field(None, ge=1, le=2**31 - 1, description=(
+        "Submit to this assignment of the caller's course: the sheet then answers exactly its items, and it is "
+        "refused before it opens, after its hard close (or the student's extension) and beyond its attempt limit."))
 
 
 class FieldError(BaseModel):
@@ -101,6 +104,9 @@ class SubmissionPublic(BaseModel):
     graded_at: UtcDateTime | None
     total: float | None = None
     max_total: float | None = None
+    assignment_id: int | None = None
+    attempt: int | None = Field(None, description="Attempt number within its assignment (1, 2, ...)")
+    late_seconds: int | None = Field(None, description="Seconds after the due date that applied (0: on time)")
 
 
 class GradeItemPublic(BaseModel):

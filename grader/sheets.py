@@ -8,11 +8,12 @@ from __future__ import annotations
 from typing import Any
 
 
-def parse_sheet(data: dict[str, Any]):
-    """The validated sheet; raises pydantic.ValidationError naming each bad item."""
+def parse_sheet(data: dict[str, Any], items: str = "sheet"):
+    """The validated sheet, answering exactly the items named (an assignment's part, or the whole sheet); raises
+    pydantic.ValidationError naming each bad item."""
     import rubric
 
-    return rubric.parse_sheet(data)
+    return rubric.parse_sheet(data, items)
 
 
 def cases_to_run(sheet) -> list:

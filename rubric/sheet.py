@@ -254,6 +254,77 @@ class PredictionSheet(SheetModel):
         return self
 
 
-def parse_sheet(data: Any) -> PredictionSheet:
-    """Validate a sheet from JSON/YAML data; raises pydantic.ValidationError naming each bad item and rule."""
-    return PredictionSheet.model_validate(data)
+# The items of the rubric each part of the lesson holds; an assignment asks for the checkpoints, the exercises (every
+# other item: predictions, hands-on and extension, which need the student's configs) or the whole sheet.
+CHECKPOINT_IDS = ("C1", "C2", "C3", "C4", "C5", "C6", "C7", "C8")
+EXERCISE_IDS = tuple(name for name in Answers.model_fields if name not in CHECKPOINT_IDS)
+SHEET_ITEMS = ("checkpoints", "exercises", "sheet")
+
+
+class CheckpointAnswers(SheetModel):
+    """The concept checkpoints only: a checkpoint assignment's sheet answers these and nothing else."""
+
+    C1: TimingNumbers
+    C2: C2
+    C3: C3
+    C4: C4
+    C5: C5
+    C6: C6
+    C7: C7
+    C8: C8
+
+
+class ExerciseAnswers(SheetModel):
+    """Every item but the checkpoints."""
+
+    A1: A1
+    A2: A2
+    A3: A3
+    A4: A4
+    A5: A5
+    B1: B1
+    B2: B2
+    B3: B3
+    B4: B4
+    H1: H1
+    H2: H2
+    H3: H3
+    H4: H4
+    H5: H5
+    H6: H6
+    X1: TimingNumbers
+    X2: X2
+    X3: X3
+
+
+class NoConfigs(SheetModel):
+    """A checkpoint sheet submits no config: its items read only the lesson's own cases."""
+
+    def submitted(self) -> dict[str, ContactCase | FrictionCase]:
+        return {}
+
+
+class CheckpointSheet(PredictionSheet):
+    answers: CheckpointAnswers
+    configs: NoConfigs = NoConfigs()
+
+
+class ExerciseSheet(PredictionSheet):
+    answers: ExerciseAnswers
+
+
+_SHEETS = {"checkpoints": CheckpointSheet, "exercises": ExerciseSheet, "sheet": PredictionSheet}
+
+
+def answered(sheet: PredictionSheet) -> tuple[str, ...]:
+    """The item ids a sheet answers: all of them, or one assignment's part."""
+    return tuple(type(sheet.answers).model_fields)
+
+
+def parse_sheet(data: Any, items: str = "sheet") -> PredictionSheet:
+    """Validate a sheet from JSON/YAML data; raises pydantic.ValidationError naming each bad item and rule.
+
+    `items` (checkpoints | exercises | sheet) says which answers it must hold: exactly those, so an answer to an item
+    outside an assignment is refused (named as an extra input) rather than silently graded or dropped.
+    """
+    return _SHEETS[items].model_validate(data)

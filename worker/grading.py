@@ -33,7 +33,7 @@ def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
         return existing
     started = time.perf_counter()
     try:
-        sheet = rubric.parse_sheet(submission.sheet)
+        sheet = rubric.parse_sheet(submission.sheet, submission.items)
         results = {run.name: stored_result(run) for run in submission.case_runs}
         book = course_rubric(session, submission.course_id, submission.lesson)
         report = rubric.grade_sheet(sheet, results, book)

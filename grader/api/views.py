@@ -24,6 +24,7 @@ def submission_public(submission: Submission, session: Session) -> SubmissionPub
         force_rerun=submission.force_rerun, error=submission.error, progress=progress(submission),
         created_at=submission.created_at, updated_at=submission.updated_at, graded_at=submission.graded_at,
         total=grade.total if grade else None, max_total=grade.max_total if grade else None,
+        assignment_id=submission.assignment_id, attempt=submission.attempt, late_seconds=submission.late_seconds,
     )
 
 

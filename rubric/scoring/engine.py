@@ -26,7 +26,7 @@ from ..metrics import ContactMetrics, FrictionMetrics, LaneMetrics
 from ..one_factor import ConfigFinding, one_factor_findings
 from ..results import CaseResult
 from ..rubrics import Item, Rubric, load_rubric, version_key
-from ..sheet import PredictionSheet
+from ..sheet import CHECKPOINT_IDS, PredictionSheet, answered
 
 Verdict = Literal["credit", "no_credit", "inconclusive", "one_factor_violation", "not_measured"]
 SHEET_CASE_PREFIX = "sheet."
@@ -104,8 +104,13 @@ def case_name(sheet: PredictionSheet, role_or_case: str) -> str:
 
 def cases_to_run(sheet: PredictionSheet, rubric: Rubric | None = None) -> list:
     """Every case grading needs: lesson cases not replaced by the sheet, plus its configs that obey the one-factor
-    rule (a config that breaks it is graded as such, never run as if valid). Unique names."""
+    rule (a config that breaks it is graded as such, never run as if valid). Unique names.
+
+    A sheet of concept checkpoints only needs no case: it is graded at once on measurements already stored (the
+    lesson's own cases, reused by content key), never by queueing runs."""
     rubric = rubric or load_rubric(sheet.lesson)
+    if set(answered(sheet)) <= set(CHECKPOINT_IDS):
+        return []
     findings = one_factor_findings(sheet, rubric)
     specs = {}
     for name in LESSON_RUNS:
@@ -270,7 +275,8 @@ def ensure_gradable(rubric: Rubric) -> None:
 
 
 def grade_sheet(sheet: PredictionSheet, results: Mapping[str, CaseResult], rubric: Rubric | None = None) -> GradeReport:
-    """Grade every rubric item; failed or missing results give visible not_measured items, never a crash or credit."""
+    """Grade every rubric item the sheet answers (all, or one assignment's part: the other items neither score nor
+    count in max_total); failed or missing results give visible not_measured items, never a crash or credit."""
     rubric = rubric or load_rubric(sheet.lesson)
     if rubric.lesson != sheet.lesson:
         raise ValueError(f"rubric is for lesson {rubric.lesson}, the sheet for {sheet.lesson}")
@@ -278,7 +284,8 @@ def grade_sheet(sheet: PredictionSheet, results: Mapping[str, CaseResult], rubri
     results = gradable(dict(results), rubric)  # provenance violations: kept, never graded, the reason shown
     findings = one_factor_findings(sheet, rubric)
     ctx = Context(sheet, results, rubric, findings)
-    items = [_grade_item(ctx, item) for item in rubric.items]
+    held = set(answered(sheet))
+    items = [_grade_item(ctx, item) for item in rubric.items if item.id in held]
     return GradeReport(
         lesson=sheet.lesson, student=sheet.student, rubric_version=rubric.version, rubric_hash=rubric.content_hash,
         engine_version=rubric.engine_version,

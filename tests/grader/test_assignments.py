@@ -7,11 +7,9 @@ from datetime import UTC, datetime, timedelta
 import pytest
 from sqlalchemy import func, select
 
-NOW = datetime.now(UTC).replace(microsecond=0)
-
-
 def at(days: float = 0, hours: float = 0) -> str:
-    return (NOW + timedelta(days=days, hours=hours)).isoformat()
+    """An instant relative to now, ISO 8601 with its offset."""
+    return (datetime.now(UTC).replace(microsecond=0) + timedelta(days=days, hours=hours)).isoformat()
 
 
 def body(**over) -> dict:
@@ -109,3 +107,124 @@ def test_the_cli_creates_and_lists_over_http(api, monkeypatch):
     refused = CliRunner().invoke(main, ["assignment", "create", "l03", "--title", "x", "--open", at(1), "--due", at(0),
                                         "--close", at(2), "--token", api.tokens["prof"]])
     assert refused.exit_code != 0 and "due_at: due_at must be after open_at" in refused.output
+
+
+def checkpoint_sheet(student: str = "alice") -> dict:
+    from rubric.sheet import CHECKPOINT_IDS
+    from tests.factories import reference_sheet
+
+    sheet = reference_sheet()
+    return {"lesson": "L03", "student": student,
+            "answers": {k: v for k, v in sheet["answers"].items() if k in CHECKPOINT_IDS}}
+
+
+def submit(api, assignment_id, who="alice", sheet=None):
+    return api.client.post("/v1/submissions", json={"sheet": sheet or checkpoint_sheet(who),
+                                                    "assignment_id": assignment_id}, headers=api.as_(who))
+
+
+def stored() -> tuple[int, int]:
+    from tests.grader.test_api_submissions import counts
+
+    return counts()
+
+
+def refused(response, *words: str) -> None:
+    assert response.status_code == 409, response.text
+    (err,) = response.json()["errors"]
+    assert err["field"] == "assignment_id" and all(w in err["rule"] for w in words), err
+
+
+def test_a_checkpoint_submission_runs_no_case_and_is_graded_at_once_on_its_items_only(api):
+    import time
+
+    aid = create(api).json()["id"]
+    started = time.perf_counter()
+    response = submit(api, aid)
+    assert time.perf_counter() - started < 1.0
+    assert response.status_code == 202, response.text
+    row = response.json()
+    assert (row["status"], row["attempt"], row["late_seconds"], row["progress"]["total"]) == ("graded", 1, 0, 0)
+    assert api.sent == [] and stored() == (1, 0)
+    grade = api.client.get(f"/v1/submissions/{row['id']}/grade", headers=api.as_("alice")).json()
+    assert [i["id"] for i in grade["items"]] == ["C1", "C2", "C3", "C4", "C5", "C6", "C7", "C8"]
+    assert grade["max_total"] == 8  # the other 22 points of the sheet are not this assignment's
+    # No lesson case was ever measured in this database: the measured checkpoints say so, the conceptual ones score.
+    verdicts = {i["id"]: i["verdict"] for i in grade["items"]}
+    assert verdicts["C2"] == "credit" and verdicts["C1"] == "not_measured"
+
+
+def test_answers_outside_the_assignment_are_refused_naming_them(api):
+    from tests.factories import reference_sheet
+
+    aid = create(api).json()["id"]
+    response = submit(api, aid, sheet=reference_sheet())
+    assert response.status_code == 422
+    fields = {e["field"] for e in response.json()["errors"]}
+    assert "sheet.answers.A1" in fields and any(f.startswith("sheet.configs.") for f in fields), fields
+    assert stored() == (0, 0)
+
+
+def test_an_exercise_submission_queues_its_cases_and_holds_no_checkpoint(api):
+    from rubric.sheet import CHECKPOINT_IDS
+    from tests.factories import reference_sheet
+
+    aid = create(api, items="exercises").json()["id"]
+    sheet = reference_sheet()
+    sheet["answers"] = {k: v for k, v in sheet["answers"].items() if k not in CHECKPOINT_IDS}
+    response = submit(api, aid, sheet=sheet)
+    assert response.status_code == 202, response.text
+    assert response.json()["status"] == "running" and len(api.sent) == response.json()["progress"]["total"] > 0
+
+
+def test_before_open_after_close_and_beyond_attempts_are_refused_with_the_rule_and_time(api):
+    early = create(api, open_at=at(1), due_at=at(2), hard_close_at=at(3)).json()
+    refused(submit(api, early["id"]), "opens at", early["open_at"][:19])
+    closed = create(api, open_at=at(-3), due_at=at(-2), hard_close_at=at(-1)).json()
+    refused(submit(api, closed["id"]), "closed at", closed["hard_close_at"][:19], "hard close")
+    assert stored() == (0, 0)
+    limited = create(api, max_attempts=2).json()
+    assert [submit(api, limited["id"]).json()["attempt"] for _ in range(2)] == [1, 2]
+    refused(submit(api, limited["id"]), "allows 2 attempts", "2 already submitted")
+    assert stored() == (2, 0)
+    assert submit(api, limited["id"], who="bob").json()["attempt"] == 1  # attempts are counted per student
+
+
+def test_an_unknown_or_foreign_assignment_is_refused(api):
+    other = create(api, who="eve", course="other").json()["id"]
+    for aid in (other, 999):
+        response = submit(api, aid)
+        assert response.status_code == 422 and response.json()["errors"][0]["field"] == "assignment_id"
+    assert stored() == (0, 0)
+
+
+def test_a_late_submission_records_how_late(api):
+    aid = create(api, due_at=at(hours=-2), hard_close_at=at(1)).json()["id"]
+    late = submit(api, aid).json()["late_seconds"]
+    assert 2 * 3600 <= late < 2 * 3600 + 60
+
+
+def test_an_extension_lets_one_student_submit_after_the_close(api):
+    aid = create(api, open_at=at(-3), due_at=at(-2), hard_close_at=at(-1)).json()["id"]
+    granted = api.client.post(f"/v1/assignments/{aid}/extensions", headers=api.as_("prof"),
+                              json={"student": "alice", "due_at": at(1), "hard_close_at": at(2)})
+    assert granted.status_code == 201, granted.text
+    assert granted.json()["granted_by"] == "prof" and granted.json()["student"] == "alice"
+    ok = submit(api, aid)
+    assert ok.status_code == 202 and ok.json()["late_seconds"] == 0
+    refused(submit(api, aid, who="bob"), "closed at")
+
+
+@pytest.mark.parametrize("who, payload, status, field", [
+    ("alice", {"student": "alice", "due_at": at(1), "hard_close_at": at(2)}, 403, None),
+    ("prof", {"student": "nobody", "due_at": at(1), "hard_close_at": at(2)}, 422, "student"),
+    ("prof", {"student": "prof", "due_at": at(1), "hard_close_at": at(2)}, 422, "student"),
+    ("prof", {"student": "alice", "due_at": at(2), "hard_close_at": at(1)}, 422, "hard_close_at"),
+    ("eve", {"student": "alice", "due_at": at(1), "hard_close_at": at(2)}, 404, None),
+])
+def test_extensions_are_an_instructors_for_a_student_of_the_course(api, who, payload, status, field):
+    aid = create(api).json()["id"]
+    response = api.client.post(f"/v1/assignments/{aid}/extensions", json=payload, headers=api.as_(who))
+    assert response.status_code == status, response.text
+    if field:
+        assert response.json()["errors"][0]["field"] == field

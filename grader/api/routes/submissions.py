@@ -8,14 +8,14 @@ from fastapi import APIRouter, Depends, HTTPException, status
 from pydantic import ValidationError
 from sqlalchemy import select
 
-from grader import crud, dispatch, sheets
+from grader import assignments, crud, dispatch, sheets
 from grader.api.deps import CurrentUser, SessionDep, SubmissionDep
 from grader.api.errors import error, field_errors
 from grader.api.ratelimit import limit_submissions
 from grader.api.responses import errors
 from grader.api.views import grade_history_public, grade_public, submission_public
 from grader.core.rubrics import current_grade, grade_history
-from grader.models import Event
+from grader.models import Assignment, Event, utcnow
 from grader.schemas import CaseRunPublic, EventPublic, GradeHistoryEntry, GradePublic, SubmissionCreate, SubmissionPublic
 
 log = logging.getLogger(__name__)
@@ -26,14 +26,27 @@ NOT_GRADED = errors(409, _409="Not graded yet; the detail says the current statu
 
 # NaN/Infinity and deep nesting never reach this handler: grader.api.bodies refuses them for every JSON body.
 @router.post("", status_code=status.HTTP_202_ACCEPTED, response_model=SubmissionPublic,
-             responses=errors(403, 413, 422, 429), dependencies=[Depends(limit_submissions)])
+             responses=errors(403, 409, 413, 422, 429, _409=(
+                 "Refused by its assignment: not open yet, past its hard close, or no attempt left; the rule "
+                 "names the time that applies")), dependencies=[Depends(limit_submissions)])
 def create_submission(body: SubmissionCreate, session: SessionDep, user: CurrentUser):
     """Validate a sheet and its case configs, store the submission and its case runs, then queue every case.
     Each token may submit at most RATE_LIMIT_SUBMISSIONS (429 with Retry-After past it)."""
     if user.role not in ("student", "instructor"):
         raise HTTPException(status.HTTP_403_FORBIDDEN, f"role {user.role} may not submit")
+    assignment = None
+    if body.assignment_id is not None:
+        assignment = session.get(Assignment, body.assignment_id)
+        if assignment is None or assignment.course_id != user.course_id:
+            return error(422, "unknown assignment", [{"field": "assignment_id",
+                                                      "rule": f"no assignment {body.assignment_id} in your course"}])
+        try:  # the time and attempt rules come before the sheet: a closed assignment takes nothing
+            attempt, late_seconds = assignments.admit(session=session, assignment=assignment, student=user,
+                                                      now=utcnow())
+        except assignments.Refused as exc:
+            return error(409, "submission refused", [{"field": exc.field, "rule": exc.rule}])
     try:
-        sheet = sheets.parse_sheet(body.sheet)
+        sheet = sheets.parse_sheet(body.sheet, assignment.items if assignment else "sheet")
         specs = sheets.cases_to_run(sheet)
     except ValidationError as exc:
         from rubric import describe_errors
@@ -43,8 +56,15 @@ def create_submission(body: SubmissionCreate, session: SessionDep, user: Current
         from rubric import with_backend
 
         specs = [with_backend(spec, backend=body.backend) for spec in specs]
+    if assignment is not None and sheet.lesson != assignment.lesson:
+        return error(422, "invalid sheet", [{"field": "sheet.lesson",
+                                             "rule": f"assignment {assignment.id} is for lesson {assignment.lesson}"}])
     submission = crud.create_submission(session=session, student=user, lesson=sheet.lesson, sheet=body.sheet,
                                         specs=specs, force_rerun=body.force_rerun)
+    if assignment is not None:
+        submission.assignment_id, submission.attempt, submission.late_seconds = assignment.id, attempt, late_seconds
+    if not specs:  # a checkpoint sheet: graded now on stored measurements, nothing queued
+        assignments.grade_now(session=session, submission=submission, sheet=sheet, backend=body.backend or "cpu")
     session.commit()  # nothing is enqueued before the submission and all its case runs are durable
     for run in submission.case_runs:
         try:
