@@ -145,3 +145,19 @@ def grade_now(*, session: Session, submission: Submission, sheet, backend: str =
     submission.graded_at = utcnow()
     touch(submission, "graded", f"{report.total:g} / {report.max_total:g} (no case to run)", session=session)
     return grade
+
+
+def counted_grades(*, session: Session, assignment: Assignment) -> list[Counted]:
+    """Per student, the attempt that counts (latest graded, or best counted score, ties to the later), by name."""
+    from grader.models import Grade
+
+    rows = session.execute(select(Submission, Grade).join(Grade, Grade.submission_id == Submission.id)
+                           .where(Submission.assignment_id == assignment.id, Grade.superseded_at.is_(None))
+                           .order_by(Submission.attempt)).all()
+    by_student: dict[int, Counted] = {}
+    for submission, grade in rows:
+        this = counted_score(assignment, submission, grade.total, grade.max_total)
+        held = by_student.get(submission.student_id)
+        if held is None or assignment.counted_attempt == "latest" or this.counted >= held.counted:
+            by_student[submission.student_id] = this
+    return sorted(by_student.values(), key=lambda c: c.submission.student.name)

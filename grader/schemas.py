@@ -253,3 +253,17 @@ class AssignmentPublic(BaseModel):
     released_at: UtcDateTime | None
     created_by: str
     created_at: UtcDateTime
+
+
+class CountedGradePublic(BaseModel):
+    """The attempt that counts for one student: its raw score, the late penalty taken and the counted score."""
+
+    student: str
+    submission_id: int
+    attempt: int
+    submitted_at: UtcDateTime
+    late_seconds: int
+    raw_score: float
+    max_score: float
+    penalty: float = Field(description="Fraction of the raw score taken for lateness (per day late, capped)")
+    counted_score: float

@@ -228,3 +228,53 @@ def test_extensions_are_an_instructors_for_a_student_of_the_course(api, who, pay
     assert response.status_code == status, response.text
     if field:
         assert response.json()["errors"][0]["field"] == field
+
+
+def grades_csv(api, aid, who="prof"):
+    import csv
+    import io
+
+    response = api.client.get(f"/v1/assignments/{aid}/grades.csv", headers=api.as_(who))
+    assert response.status_code == 200, response.text
+    assert response.headers["content-type"].startswith("text/csv")
+    return list(csv.DictReader(io.StringIO(response.text)))
+
+
+def test_a_late_attempt_is_penalized_per_day_and_the_export_shows_raw_beside_counted(api):
+    aid = create(api, due_at=at(hours=-2), hard_close_at=at(1), late_penalty_per_day=0.1).json()["id"]
+    sub = submit(api, aid).json()
+    assert submit(api, aid, who="bob").status_code == 202
+    (alice, bob) = grades_csv(api, aid)
+    assert (alice["student"], alice["raw_score"], alice["penalty"], alice["counted_score"]) == ("alice", "4", "0.1",
+                                                                                                 "3.6")
+    assert (alice["attempt"], alice["submission_id"], alice["max_score"]) == ("1", str(sub["id"]), "8")
+    assert alice["submitted_at_utc"].endswith("+00:00") and int(alice["late_seconds"]) >= 7200
+    assert bob["student"] == "bob"
+    listed = api.client.get(f"/v1/assignments/{aid}/grades", headers=api.as_("prof")).json()
+    assert listed[0]["counted_score"] == 3.6 and listed[0]["raw_score"] == 4
+
+
+def test_the_penalty_counts_each_started_day_and_stops_at_the_cap():
+    from grader.assignments import penalty_fraction
+    from grader.models import Assignment
+
+    a = Assignment(late_penalty_per_day=0.25, late_penalty_cap=0.6)
+    assert [penalty_fraction(a, s) for s in (0, 1, 86400, 86401, 3 * 86400)] == [0.0, 0.25, 0.25, 0.5, 0.6]
+    assert penalty_fraction(Assignment(late_penalty_per_day=0.5, late_penalty_cap=None), 10 * 86400) == 1.0
+
+
+@pytest.mark.parametrize("counted, attempt, raw", [("latest", "2", "3"), ("best", "1", "4")])
+def test_the_counted_attempt_is_the_latest_or_the_best(api, counted, attempt, raw):
+    aid = create(api, counted_attempt=counted).json()["id"]
+    assert submit(api, aid).status_code == 202
+    worse = checkpoint_sheet()
+    worse["answers"]["C2"]["reason"] = "it_is_valid"
+    assert submit(api, aid, sheet=worse).json()["attempt"] == 2
+    (row,) = grades_csv(api, aid)
+    assert (row["attempt"], row["raw_score"], row["counted_score"]) == (attempt, raw, raw)
+
+
+def test_only_instructors_export(api):
+    aid = create(api).json()["id"]
+    for who, status in (("alice", 403), ("tess", 403), ("eve", 404)):
+        assert api.client.get(f"/v1/assignments/{aid}/grades.csv", headers=api.as_(who)).status_code == status

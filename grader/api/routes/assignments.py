@@ -2,15 +2,20 @@
 
 from __future__ import annotations
 
+import csv
+import io
+
 from fastapi import APIRouter, HTTPException, status
+from fastapi.responses import PlainTextResponse, Response
 from sqlalchemy import select
 
 from grader import assignments as logic
 from grader.api.deps import CurrentUser, Name, RowId, SessionDep
 from grader.api.errors import FieldError
-from grader.api.responses import errors
+from grader.api.responses import csv_ok, errors
 from grader.models import Assignment, Course, Extension, User, utcnow
-from grader.schemas import AssignmentCreate, AssignmentPublic, ExtensionCreate, ExtensionPublic
+from grader.schemas import (AssignmentCreate, AssignmentPublic, CountedGradePublic, ExtensionCreate,
+                            ExtensionPublic)
 
 router = APIRouter(tags=["assignments"], responses=errors(401, 404, 422))
 
@@ -92,3 +97,44 @@ def grant_extension(assignment_id: RowId, body: ExtensionCreate, session: Sessio
     session.commit()
     return ExtensionPublic(assignment_id=assignment.id, student=student.name, due_at=ext.due_at,
                            hard_close_at=ext.hard_close_at, granted_by=user.name, granted_at=ext.granted_at)
+
+
+def _counted(assignment_id: int, session, user: User) -> tuple[Assignment, list[CountedGradePublic]]:
+    assignment = readable_assignment(assignment_id, session, user)
+    instructor(user)
+    rows = [CountedGradePublic(student=c.submission.student.name, submission_id=c.submission.id,
+                               attempt=c.submission.attempt, submitted_at=c.submission.created_at,
+                               late_seconds=c.submission.late_seconds or 0, raw_score=c.raw, max_score=c.max_total,
+                               penalty=c.penalty, counted_score=c.counted)
+            for c in logic.counted_grades(session=session, assignment=assignment)]
+    return assignment, rows
+
+
+@router.get("/assignments/{assignment_id}/grades", response_model=list[CountedGradePublic], responses=errors(403))
+def counted_grades(assignment_id: RowId, session: SessionDep, user: CurrentUser):
+    """Per student, the attempt that counts (latest or best, as the assignment says): raw score, late penalty and
+    counted score (instructors)."""
+    return _counted(assignment_id, session, user)[1]
+
+
+COLUMNS = ("student", "counted_score", "raw_score", "max_score", "penalty", "late_seconds", "attempt",
+           "submission_id", "submitted_at_utc")
+
+
+# response_class=Response: the success is CSV while the errors stay JSON (as grader.api.routes.exports does).
+@router.get("/assignments/{assignment_id}/grades.csv", response_class=Response, responses={
+    **csv_ok("One row per student: the counted attempt, its raw score, the late penalty and the counted score"),
+    **errors(403)})
+def counted_grades_csv(assignment_id: RowId, session: SessionDep, user: CurrentUser):
+    """The assignment's counted grades as CSV (instructors): student, counted score, raw score, penalty, attempt,
+    submission and when it was submitted (UTC)."""
+    assignment, rows = _counted(assignment_id, session, user)
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(COLUMNS)
+    for r in rows:
+        writer.writerow([r.student, f"{r.counted_score:g}", f"{r.raw_score:g}", f"{r.max_score:g}", f"{r.penalty:g}",
+                         r.late_seconds, r.attempt, r.submission_id, r.submitted_at.isoformat()])
+    name = f"{assignment.course.name}-assignment-{assignment.id}-grades.csv"
+    return PlainTextResponse(out.getvalue(), media_type="text/csv",
+                             headers={"Content-Disposition": f'attachment; filename="{name}"'})

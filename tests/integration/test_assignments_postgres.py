@@ -1,0 +1,66 @@
+"""Assignments on real PostgreSQL: migration 0005 creates exactly the models there, and the acceptance tests of
+tests/grader/test_assignments.py (checkpoint sheet graded with no case run, hard close, attempt limit, late penalty
+beside the raw score, extension) run again on the in-process app with DATABASE_URL pointed at PostgreSQL."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests import services
+from tests.factories import create_people
+from tests.grader.conftest import Api
+from tests.grader.test_assignments import (  # noqa: F401 - collected here again, against PostgreSQL
+    test_a_checkpoint_submission_runs_no_case_and_is_graded_at_once_on_its_items_only,
+    test_a_late_attempt_is_penalized_per_day_and_the_export_shows_raw_beside_counted,
+    test_an_extension_lets_one_student_submit_after_the_close,
+    test_before_open_after_close_and_beyond_attempts_are_refused_with_the_rule_and_time,
+    test_the_counted_attempt_is_the_latest_or_the_best,
+)
+
+pytestmark = pytest.mark.integration
+
+
+@pytest.fixture
+def database_url():
+    with services.postgres_database() as url:
+        yield url
+
+
+@pytest.fixture
+def api(database_url, tmp_path, monkeypatch):
+    """The `api` fixture of tests/grader, on a fresh PostgreSQL database."""
+    from fastapi.testclient import TestClient
+    from sqlalchemy.orm import Session
+
+    from grader import dispatch
+    from grader.core import db
+    from grader.main import app
+    from grader.settings import settings
+
+    monkeypatch.setattr(settings, "database_url", database_url)
+    monkeypatch.setattr(settings, "artifacts_dir", tmp_path / "artifacts")
+    monkeypatch.setattr(db, "_engine", None)
+    db.migrate(database_url)
+    with Session(db.get_engine()) as session:
+        tokens = create_people(session, course="l03", other_course="other")
+        session.commit()
+    state = Api(client=TestClient(app), tokens=tokens)
+    monkeypatch.setattr(dispatch, "send_case_run", lambda *args: state.sent.append(args))
+    yield state
+    db.get_engine().dispose()
+    db._engine = None
+
+
+def test_the_migration_creates_exactly_the_models_on_postgresql(database_url):
+    from alembic.autogenerate import compare_metadata
+    from alembic.migration import MigrationContext
+
+    from grader.core.db import make_engine, migrate
+    from grader.models import Base
+
+    migrate(database_url)
+    engine = make_engine(database_url)
+    with engine.connect() as conn:
+        diff = compare_metadata(MigrationContext.configure(conn), Base.metadata)
+    engine.dispose()
+    assert diff == []
