@@ -278,3 +278,35 @@ def test_only_instructors_export(api):
     aid = create(api).json()["id"]
     for who, status in (("alice", 403), ("tess", 403), ("eve", 404)):
         assert api.client.get(f"/v1/assignments/{aid}/grades.csv", headers=api.as_(who)).status_code == status
+
+
+def test_a_checkpoint_sheet_is_graded_on_the_lesson_cases_already_stored(api):
+    """C1 reads N4 as measured for an earlier submission (bob's); nothing is run for alice's checkpoint sheet."""
+    from rubric import BASELINE_CASES
+    from rubric.metrics import contact_metrics
+
+    from grader.core.db import new_session
+    from grader.models import CaseRun
+    from grader.settings import settings
+    from tests.factories import contact_arrays, provenance, reference_sheet, write_case_folder
+
+    earlier = api.client.post("/v1/submissions", json={"sheet": reference_sheet()}, headers=api.as_("bob")).json()
+    n4 = BASELINE_CASES["N4"]
+    arrays = contact_arrays(n=n4.n_steps, dt=n4.dt)
+    folder = settings.artifacts_dir / "n4"
+    folder.mkdir(parents=True)
+    write_case_folder(folder, arrays, provenance(n4))
+    with new_session() as session:
+        run = session.query(CaseRun).filter_by(submission_id=earlier["id"], name="N4").one()
+        run.status, run.result_status, run.artifact_dir = "done", "ok", str(folder)
+        run.provenance = provenance(n4)
+        run.metrics = contact_metrics(n4, arrays).model_dump(mode="json")
+        session.commit()
+    api.sent.clear()
+    aid = create(api).json()["id"]
+    row = submit(api, aid).json()
+    assert row["status"] == "graded" and row["progress"]["total"] == 0 and api.sent == []
+    items = {i["id"]: i for i in api.client.get(f"/v1/submissions/{row['id']}/grade", headers=api.as_("alice")).json()["items"]}
+    assert items["C1"]["verdict"] == "credit", items["C1"]["feedback"]
+    assert items["C1"]["backends"] == {"N4": "cpu"}
+    assert items["C5"]["verdict"] == "not_measured"  # friction-baseline was never measured here

@@ -10,6 +10,7 @@ from tests import services
 from tests.factories import create_people
 from tests.grader.conftest import Api
 from tests.grader.test_assignments import (  # noqa: F401 - collected here again, against PostgreSQL
+    test_a_checkpoint_sheet_is_graded_on_the_lesson_cases_already_stored,
     test_a_checkpoint_submission_runs_no_case_and_is_graded_at_once_on_its_items_only,
     test_a_late_attempt_is_penalized_per_day_and_the_export_shows_raw_beside_counted,
     test_an_extension_lets_one_student_submit_after_the_close,
