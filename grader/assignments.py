@@ -161,3 +161,17 @@ def counted_grades(*, session: Session, assignment: Assignment) -> list[Counted]
         if held is None or assignment.counted_attempt == "latest" or this.counted >= held.counted:
             by_student[submission.student_id] = this
     return sorted(by_student.values(), key=lambda c: c.submission.student.name)
+
+
+def withheld(*, session: Session, submission: Submission, user: User, now: datetime) -> str | None:
+    """Why `user` may not see this submission's scores and feedback yet, or None. Staff always see them; a student
+    sees them at once (immediate), from the due date that applies to them (after_due) or once released."""
+    assignment = submission.assignment
+    if assignment is None or user.role != "student" or assignment.visibility == "immediate":
+        return None
+    if assignment.visibility == "after_due":
+        due = dates_for(session=session, assignment=assignment, student=submission.student).due_at
+        return None if now >= due else f"scores and feedback are shown after the due date, {iso(due)}"
+    if assignment.released_at is None:
+        return f"scores and feedback are shown once assignment {assignment.id} is released by an instructor"
+    return None

@@ -8,7 +8,8 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.core.rubrics import current_grade
-from grader.models import Grade, Submission
+from grader.assignments import withheld
+from grader.models import Grade, Submission, User, utcnow
 from grader.schemas import GradeHistoryEntry, GradePublic, Progress, SubmissionPublic
 
 
@@ -17,8 +18,12 @@ def progress(submission: Submission) -> Progress:
     return Progress(total=len(submission.case_runs), **{s: counts.get(s, 0) for s in ("queued", "running", "done", "failed")})
 
 
-def submission_public(submission: Submission, session: Session) -> SubmissionPublic:
+def submission_public(submission: Submission, session: Session, user: User | None = None) -> SubmissionPublic:
+    """`user`: the caller, whose view leaves out a total their assignment does not show them yet."""
     grade = current_grade(session, submission.id)
+    if grade is not None and user is not None and withheld(session=session, submission=submission, user=user,
+                                                           now=utcnow()):
+        grade = None
     return SubmissionPublic(
         id=submission.id, lesson=submission.lesson, student=submission.student.name, status=submission.status,
         force_rerun=submission.force_rerun, error=submission.error, progress=progress(submission),

@@ -19,7 +19,8 @@ from grader import crud
 from grader.api.deps import MAX_ID, SessionDep
 from grader.api.routes.files import EVIDENCE
 from grader.core.rubrics import current_grade, grade_history
-from grader.models import Grade, Submission
+from grader.assignments import withheld
+from grader.models import Grade, Submission, utcnow
 from grader.pages.auth import PageUser, clear_session_cookie, set_session_cookie
 from grader.pages.views import report_view
 from grader.settings import settings
@@ -94,6 +95,9 @@ def submissions_page(request: Request, session: SessionDep, user: PageUser):
     rows = crud.visible_submissions(session=session, user=user)
     grades = {g.submission_id: g for g in session.scalars(
         select(Grade).where(Grade.submission_id.in_([s.id for s in rows]), Grade.superseded_at.is_(None)))} if rows else {}
+    now = utcnow()
+    grades = {i: g for i, g in grades.items()
+              if not withheld(session=session, submission=session.get(Submission, i), user=user, now=now)}
     return TEMPLATES.TemplateResponse(request, "submissions.html",
                                       {"user": user, "submissions": rows[::-1], "grades": grades})
 
@@ -105,10 +109,12 @@ def report_page(request: Request, submission_id: int, session: SessionDep, user:
     submission = _readable(session, user, submission_id)
     if submission is None:
         return _not_found(request, user, f"submission {submission_id}")
-    grade = current_grade(session, submission.id)
+    hidden = withheld(session=session, submission=submission, user=user, now=utcnow())
+    grade = None if hidden else current_grade(session, submission.id)
     view = report_view(submission, grade)
     return TEMPLATES.TemplateResponse(request, "report.html", {
-        "user": user, "view": view, "part_titles": PART_TITLES, "history": grade_history(session, submission.id)})
+        "user": user, "view": view, "part_titles": PART_TITLES,
+        "history": [] if hidden else grade_history(session, submission.id)})
 
 
 @router.get("/submissions/{submission_id}/results.json")
@@ -118,7 +124,7 @@ def results_download(request: Request, submission_id: int, session: SessionDep, 
         return _sign_in_redirect(request)
     submission = _readable(session, user, submission_id)
     grade = current_grade(session, submission.id) if submission else None
-    if grade is None:
+    if grade is None or withheld(session=session, submission=submission, user=user, now=utcnow()):
         return _not_found(request, user, f"grade of submission {submission_id}")
     from fastapi.responses import JSONResponse
 

@@ -310,3 +310,31 @@ def test_a_checkpoint_sheet_is_graded_on_the_lesson_cases_already_stored(api):
     assert items["C1"]["verdict"] == "credit", items["C1"]["feedback"]
     assert items["C1"]["backends"] == {"N4": "cpu"}
     assert items["C5"]["verdict"] == "not_measured"  # friction-baseline was never measured here
+
+
+@pytest.mark.parametrize("visibility", ["after_due", "on_release"])
+def test_scores_and_feedback_are_withheld_from_the_student_until_visible(api, visibility):
+    aid = create(api, visibility=visibility).json()["id"]
+    row = submit(api, aid).json()
+    assert row["status"] == "graded" and row["total"] is None  # not even in the creation answer
+    sid = row["id"]
+    grade = api.client.get(f"/v1/submissions/{sid}/grade", headers=api.as_("alice"))
+    assert grade.status_code == 409 and "withheld" in grade.json()["detail"]
+    assert api.client.get(f"/v1/submissions/{sid}/grades", headers=api.as_("alice")).status_code == 409
+    assert api.client.get(f"/v1/submissions/{sid}", headers=api.as_("alice")).json()["total"] is None
+    assert [s["total"] for s in api.client.get("/v1/submissions", headers=api.as_("alice")).json()] == [None]
+    page = api.client.get(f"/submissions/{sid}", headers=api.as_("alice"))
+    assert page.status_code == 200 and "C2" not in page.text and "credit" not in page.text
+    assert api.client.get(f"/submissions/{sid}/results.json", headers=api.as_("alice")).status_code == 404
+    # Staff see it all along.
+    assert api.client.get(f"/v1/submissions/{sid}/grade", headers=api.as_("prof")).json()["total"] == 4
+    assert "C2" in api.client.get(f"/submissions/{sid}", headers=api.as_("prof")).text
+    if visibility == "on_release":
+        assert api.client.post(f"/v1/assignments/{aid}/release", headers=api.as_("alice")).status_code == 403
+        released = api.client.post(f"/v1/assignments/{aid}/release", headers=api.as_("prof"))
+        assert released.status_code == 200 and released.json()["released_at"]
+    else:  # the due date moves into the past for alice: an extension is the student's own due date
+        api.client.post(f"/v1/assignments/{aid}/extensions", headers=api.as_("prof"),
+                        json={"student": "alice", "due_at": at(hours=-1), "hard_close_at": at(1)})
+    grade = api.client.get(f"/v1/submissions/{sid}/grade", headers=api.as_("alice"))
+    assert grade.status_code == 200 and grade.json()["total"] == 4

@@ -15,6 +15,7 @@ from tests.grader.test_assignments import (  # noqa: F401 - collected here again
     test_a_late_attempt_is_penalized_per_day_and_the_export_shows_raw_beside_counted,
     test_an_extension_lets_one_student_submit_after_the_close,
     test_before_open_after_close_and_beyond_attempts_are_refused_with_the_rule_and_time,
+    test_scores_and_feedback_are_withheld_from_the_student_until_visible,
     test_the_counted_attempt_is_the_latest_or_the_best,
 )
 

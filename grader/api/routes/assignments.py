@@ -76,6 +76,18 @@ def get_assignment(assignment_id: RowId, session: SessionDep, user: CurrentUser)
     return assignment_public(readable_assignment(assignment_id, session, user))
 
 
+@router.post("/assignments/{assignment_id}/release", response_model=AssignmentPublic, responses=errors(403))
+def release(assignment_id: RowId, session: SessionDep, user: CurrentUser):
+    """Show the assignment's scores and feedback to its students (visibility on_release; an instructor of the
+    course). Releasing again keeps the first release time."""
+    assignment = readable_assignment(assignment_id, session, user)
+    instructor(user)
+    if assignment.released_at is None:
+        assignment.released_at = utcnow()
+        session.commit()
+    return assignment_public(assignment)
+
+
 @router.post("/assignments/{assignment_id}/extensions", status_code=status.HTTP_201_CREATED,
              response_model=ExtensionPublic, responses=errors(403, 413))
 def grant_extension(assignment_id: RowId, body: ExtensionCreate, session: SessionDep, user: CurrentUser):

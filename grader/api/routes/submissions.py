@@ -21,7 +21,8 @@ from grader.schemas import CaseRunPublic, EventPublic, GradeHistoryEntry, GradeP
 log = logging.getLogger(__name__)
 router = APIRouter(prefix="/submissions", tags=["submissions"], responses=errors(401))
 ONE = errors(404, 422)
-NOT_GRADED = errors(409, _409="Not graded yet; the detail says the current status")
+NOT_GRADED = errors(409, _409="Not graded yet, or not shown to this student yet (its assignment withholds scores "
+                                "until the due date or a release); the detail says which")
 
 
 # NaN/Infinity and deep nesting never reach this handler: grader.api.bodies refuses them for every JSON body.
@@ -71,25 +72,33 @@ def create_submission(body: SubmissionCreate, session: SessionDep, user: Current
             dispatch.send_case_run(run.id, run.attempt, run.backend)
         except Exception:  # stored and queued in the database: the reconciler re-sends it
             log.exception("could not enqueue case run %s; the reconciler will re-send it", run.id)
-    return submission_public(submission, session)
+    return submission_public(submission, session, user)
+
+
+def shown_later(submission, session, user) -> None:
+    """409 while the submission's assignment withholds its scores and feedback from this student."""
+    why = assignments.withheld(session=session, submission=submission, user=user, now=utcnow())
+    if why:
+        raise HTTPException(status.HTTP_409_CONFLICT, f"grade of submission {submission.id} is withheld: {why}")
 
 
 @router.get("", response_model=list[SubmissionPublic])
 def list_submissions(session: SessionDep, user: CurrentUser):
     """The caller's own submissions (students) or their course's (instructors, auditors)."""
-    return [submission_public(s, session) for s in crud.visible_submissions(session=session, user=user)]
+    return [submission_public(s, session, user) for s in crud.visible_submissions(session=session, user=user)]
 
 
 @router.get("/{submission_id}", response_model=SubmissionPublic, responses=ONE)
-def get_submission(submission: SubmissionDep, session: SessionDep):
+def get_submission(submission: SubmissionDep, session: SessionDep, user: CurrentUser):
     """Status and progress of one submission."""
-    return submission_public(submission, session)
+    return submission_public(submission, session, user)
 
 
 @router.get("/{submission_id}/grade", response_model=GradePublic,
             responses={**ONE, **NOT_GRADED})
-def get_grade(submission: SubmissionDep, session: SessionDep):
+def get_grade(submission: SubmissionDep, session: SessionDep, user: CurrentUser):
     """The grade with per-item score, feedback and measured evidence."""
+    shown_later(submission, session, user)
     grade = current_grade(session, submission.id)
     if grade is None:
         detail = f"submission {submission.id} is {submission.status}, not graded"
@@ -97,9 +106,10 @@ def get_grade(submission: SubmissionDep, session: SessionDep):
     return grade_public(grade)
 
 
-@router.get("/{submission_id}/grades", response_model=list[GradeHistoryEntry], responses=ONE)
-def list_grades(submission: SubmissionDep, session: SessionDep):
+@router.get("/{submission_id}/grades", response_model=list[GradeHistoryEntry], responses={**ONE, **NOT_GRADED})
+def list_grades(submission: SubmissionDep, session: SessionDep, user: CurrentUser):
     """Every grade the submission has had, oldest first: the first grading, then one per committed regrade."""
+    shown_later(submission, session, user)
     return grade_history_public(grade_history(session, submission.id))
 
 
