@@ -45,6 +45,9 @@ class User(Base):
     name: Mapped[str] = mapped_column(String(64))
     role: Mapped[str] = mapped_column(String(16))
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    # From a roster import (`name` is then the student id): the person's full name and email.
+    full_name: Mapped[str | None] = mapped_column(String(128))
+    email: Mapped[str | None] = mapped_column(String(254))
 
     course: Mapped[Course] = relationship(lazy="joined")
 

@@ -267,3 +267,17 @@ class CountedGradePublic(BaseModel):
     max_score: float
     penalty: float = Field(description="Fraction of the raw score taken for lateness (per day late, capped)")
     counted_score: float
+
+
+class RosterImport(Strict):
+    """A roster as CSV text with the header `student_id,name,email`, one student a row."""
+
+    csv: str = Field(min_length=1, max_length=200_000)
+
+
+class RosterEntry(BaseModel):
+    student: str = Field(description="The student id: the name the service knows them by")
+    name: str
+    email: str
+    created: bool = Field(description="False when the student was already on the roster (name and email updated)")
+    token: str | None = Field(description="The new student's API token, shown this once; None on a re-import")

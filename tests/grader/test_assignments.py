@@ -338,3 +338,58 @@ def test_scores_and_feedback_are_withheld_from_the_student_until_visible(api, vi
                         json={"student": "alice", "due_at": at(hours=-1), "hard_close_at": at(1)})
     grade = api.client.get(f"/v1/submissions/{sid}/grade", headers=api.as_("alice"))
     assert grade.status_code == 200 and grade.json()["total"] == 4
+
+
+ROSTER = "student_id,name,email\ns1001,Ada Lovelace,ada@example.edu\ns1002,Alan Turing,alan@example.edu\n"
+
+
+def roster(api, text, who="prof", course="l03"):
+    return api.client.post(f"/v1/courses/{course}/roster", json={"csv": text}, headers=api.as_(who))
+
+
+def test_a_roster_import_issues_each_new_student_one_token_and_a_reimport_duplicates_nobody(api):
+    first = roster(api, ROSTER)
+    assert first.status_code == 200, first.text
+    tokens = {e["student"]: e["token"] for e in first.json()}
+    assert set(tokens) == {"s1001", "s1002"} and all(tokens.values())
+    ada = {"Authorization": f"Bearer {tokens['s1001']}"}
+    assert api.client.get("/v1/courses/l03/assignments", headers=ada).status_code == 200  # the token works
+    again = roster(api, ROSTER.replace("Alan Turing", "A. M. Turing") + "s1003,Grace Hopper,grace@example.edu\n")
+    assert [(e["student"], e["created"], e["token"] is None, e["name"]) for e in again.json()] == [
+        ("s1001", False, True, "Ada Lovelace"), ("s1002", False, True, "A. M. Turing"),
+        ("s1003", True, False, "Grace Hopper")]
+    from grader.core.db import new_session
+    from grader.models import ApiToken, User
+
+    with new_session() as session:
+        assert session.scalar(select(func.count()).select_from(User).where(User.name.like("s100%"))) == 3
+        assert session.scalar(select(func.count()).select_from(ApiToken)) == 5 + 3  # the fixture's 5 people + 3
+
+
+GOOD = "student_id,name,email\nok1,Fine,fine@x.org\n"  # line 2: a good row that must not be stored either
+
+
+@pytest.mark.parametrize("text, field, rule", [
+    ("id,name,email\nok1,Fine,fine@x.org\n", "csv.line 1", "header must be student_id,name,email"),
+    (GOOD + "s1,A,not-an-email\n", "csv.line 3.email", "email address"),
+    (GOOD + "ok1,B,b@x.org\n", "csv.line 3.student_id", "twice"),
+    (GOOD + "bad id,A,a@x.org\n", "csv.line 3.student_id", "letters, digits"),
+    (GOOD + "s1,A\n", "csv.line 3", "3 columns"),
+    (GOOD + "prof,P,p@x.org\n", "csv.student_id prof", "staff"),
+    ("student_id,name,email\n", "csv", "no student rows"),
+])
+def test_a_bad_roster_is_refused_whole_naming_line_and_rule(api, text, field, rule):
+    response = roster(api, text)
+    assert response.status_code == 422, response.text
+    assert any(e["field"] == field and rule in e["rule"] for e in response.json()["errors"]), response.json()
+    from grader.core.db import new_session
+    from grader.models import User
+
+    with new_session() as session:  # not even the good row was stored
+        assert session.scalar(select(func.count()).select_from(User).where(User.name == "ok1")) == 0
+
+
+def test_only_an_instructor_imports_a_roster(api):
+    assert roster(api, ROSTER, who="alice").status_code == 403
+    assert roster(api, ROSTER, who="tess").status_code == 403
+    assert roster(api, ROSTER, who="eve").status_code == 404

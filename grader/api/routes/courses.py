@@ -3,13 +3,14 @@
 from fastapi import APIRouter, HTTPException, status
 from sqlalchemy import select
 
-from grader import crud
+from grader import crud, roster
+from grader.api.errors import FieldError
 from grader.api.deps import CurrentUser, Name, SessionDep
 from grader.api.responses import errors
 from grader.api.views import submission_public
 from grader.models import Course
 from grader.dashboard import Dashboard, course_dashboard
-from grader.schemas import SubmissionPublic
+from grader.schemas import RosterEntry, RosterImport, SubmissionPublic
 
 router = APIRouter(prefix="/courses", tags=["courses"], responses=errors(401, 403, 404, 422))
 
@@ -36,3 +37,19 @@ def dashboard(course: Name, session: SessionDep, user: CurrentUser):
     """The class dashboard's data: states, failed or stuck runs (and whether each may be re-sent), roster of
     latest attempts, item analysis, predictions against measurements (H1, H4), key measurements per backend."""
     return course_dashboard(session=session, course=staff_course(course, session, user))
+
+
+@router.post("/{course}/roster", response_model=list[RosterEntry], responses=errors(413))
+def import_roster(course: Name, body: RosterImport, session: SessionDep, user: CurrentUser):
+    """Import students from CSV (student_id,name,email): new ones get a token, shown only in this answer; a student
+    already there keeps their token and gets the file's name and email. All rows or none (instructors)."""
+    row = staff_course(course, session, user)
+    if user.role != "instructor":
+        raise HTTPException(status.HTTP_403_FORBIDDEN, "only instructors import a roster")
+    rows, problems = roster.parse_roster(body.csv)
+    problems = problems or roster.role_conflicts(session=session, course=row, rows=rows)
+    if problems:
+        raise FieldError(422, "invalid roster", problems)
+    entries = roster.import_roster(session=session, course=row, rows=rows)
+    session.commit()
+    return entries

@@ -54,6 +54,9 @@ def upgrade() -> None:
     sa.UniqueConstraint('assignment_id', 'student_id')
     )
     op.create_index(op.f('ix_extensions_assignment_id'), 'extensions', ['assignment_id'], unique=False)
+    with op.batch_alter_table('users') as batch_op:
+        batch_op.add_column(sa.Column('full_name', sa.String(length=128), nullable=True))
+        batch_op.add_column(sa.Column('email', sa.String(length=254), nullable=True))
     with op.batch_alter_table('submissions') as batch_op:
         batch_op.add_column(sa.Column('assignment_id', sa.Integer(), nullable=True))
         batch_op.add_column(sa.Column('attempt', sa.Integer(), nullable=True))
@@ -69,6 +72,9 @@ def downgrade() -> None:
         batch_op.drop_column('late_seconds')
         batch_op.drop_column('attempt')
         batch_op.drop_column('assignment_id')
+    with op.batch_alter_table('users') as batch_op:
+        batch_op.drop_column('email')
+        batch_op.drop_column('full_name')
     op.drop_index(op.f('ix_extensions_assignment_id'), table_name='extensions')
     op.drop_table('extensions')
     op.drop_index(op.f('ix_assignments_course_id'), table_name='assignments')

@@ -1,0 +1,69 @@
+"""Roster import: a course's students from CSV (student id, name, email), each new one given a token once."""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from grader import crud
+from grader.models import Course, User
+
+COLUMNS = ["student_id", "name", "email"]
+STUDENT_ID = re.compile(r"^[A-Za-z0-9_.@\-]{1,64}$")
+EMAIL = re.compile(r"^[^@\s]{1,64}@[^@\s]+\.[^@\s]+$")
+
+
+def parse_roster(text: str) -> tuple[list[tuple[str, str, str]], list[dict[str, str]]]:
+    """The rows, and every error as {field: 'csv.line N.COLUMN', rule}; nothing is stored while any error stands."""
+    reader = csv.reader(io.StringIO(text))
+    header = [h.strip() for h in next(reader, [])]
+    if header != COLUMNS:
+        return [], [{"field": "csv.line 1", "rule": f"the header must be {','.join(COLUMNS)}, got {','.join(header)}"}]
+    rows, errors, seen = [], [], set()
+    for line, row in enumerate(reader, start=2):
+        if not any(cell.strip() for cell in row):
+            continue
+        if len(row) != 3:
+            errors.append({"field": f"csv.line {line}", "rule": f"3 columns expected, got {len(row)}"})
+            continue
+        sid, name, email = (cell.strip() for cell in row)
+        if not STUDENT_ID.match(sid):
+            errors.append({"field": f"csv.line {line}.student_id",
+                           "rule": "1-64 letters, digits or _.@- (it becomes the student's name in the service)"})
+        elif sid in seen:
+            errors.append({"field": f"csv.line {line}.student_id", "rule": f"{sid!r} appears twice in the file"})
+        if not 1 <= len(name) <= 128:
+            errors.append({"field": f"csv.line {line}.name", "rule": "1 to 128 characters"})
+        if len(email) > 254 or not EMAIL.match(email):
+            errors.append({"field": f"csv.line {line}.email", "rule": "an email address (name@domain)"})
+        seen.add(sid)
+        rows.append((sid, name, email))
+    if not rows and not errors:
+        errors.append({"field": "csv", "rule": "no student rows"})
+    return rows, errors
+
+
+def import_roster(*, session: Session, course: Course, rows: list[tuple[str, str, str]]) -> list[dict]:
+    """Add the students not yet in the course (each with a new token) and update the others' name and email; a
+    re-import therefore never duplicates anyone or issues a second token. The caller commits."""
+    out = []
+    for sid, name, email in rows:
+        user = session.scalar(select(User).where(User.course_id == course.id, User.name == sid))
+        created = user is None
+        if created:
+            user = crud.get_or_create_user(session=session, course=course, name=sid, role="student")
+        user.full_name, user.email = name, email
+        token = crud.create_token(session=session, user=user) if created else None
+        out.append({"student": sid, "name": name, "email": email, "created": created, "token": token})
+    return out
+
+
+def role_conflicts(*, session: Session, course: Course, rows: list[tuple[str, str, str]]) -> list[dict[str, str]]:
+    """Rows naming someone of the course who is not a student (an instructor or auditor)."""
+    staff = set(session.scalars(select(User.name).where(User.course_id == course.id, User.role != "student")))
+    return [{"field": f"csv.student_id {sid}", "rule": f"{sid!r} is on the course staff, not a student"}
+            for sid, _, _ in rows if sid in staff]
