@@ -115,6 +115,8 @@ class Extension(Base):
 
 class Submission(Base):
     __tablename__ = "submissions"
+    # Two submissions racing for one attempt number: the database lets one in (NULLs, outside assignments, never clash).
+    __table_args__ = (UniqueConstraint("assignment_id", "student_id", "attempt"),)
 
     id: Mapped[int] = mapped_column(primary_key=True)
     course_id: Mapped[int] = mapped_column(ForeignKey("courses.id"), index=True)

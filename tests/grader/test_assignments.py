@@ -393,3 +393,14 @@ def test_only_an_instructor_imports_a_roster(api):
     assert roster(api, ROSTER, who="alice").status_code == 403
     assert roster(api, ROSTER, who="tess").status_code == 403
     assert roster(api, ROSTER, who="eve").status_code == 404
+
+
+def test_two_submissions_racing_for_one_attempt_number_let_one_in(api, monkeypatch):
+    from grader import assignments
+
+    aid = create(api, max_attempts=3).json()["id"]
+    assert submit(api, aid).status_code == 202
+    # The second request counted its attempts before the first one committed: both think they are attempt 1.
+    monkeypatch.setattr(assignments, "attempts_used", lambda **_: 0)
+    refused(submit(api, aid), "attempt 1 of assignment", "was just taken")
+    assert stored() == (1, 0)

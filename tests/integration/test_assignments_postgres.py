@@ -17,6 +17,7 @@ from tests.grader.test_assignments import (  # noqa: F401 - collected here again
     test_before_open_after_close_and_beyond_attempts_are_refused_with_the_rule_and_time,
     test_scores_and_feedback_are_withheld_from_the_student_until_visible,
     test_the_counted_attempt_is_the_latest_or_the_best,
+    test_two_submissions_racing_for_one_attempt_number_let_one_in,
 )
 
 pytestmark = pytest.mark.integration

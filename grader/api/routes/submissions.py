@@ -7,6 +7,7 @@ import logging
 from fastapi import APIRouter, Depends, HTTPException, status
 from pydantic import ValidationError
 from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
 
 from grader import assignments, crud, dispatch, sheets
 from grader.api.deps import CurrentUser, SessionDep, SubmissionDep
@@ -64,6 +65,12 @@ def create_submission(body: SubmissionCreate, session: SessionDep, user: Current
                                         specs=specs, force_rerun=body.force_rerun)
     if assignment is not None:
         submission.assignment_id, submission.attempt, submission.late_seconds = assignment.id, attempt, late_seconds
+    try:
+        session.flush()  # a concurrent submission that took this attempt number fails here, before any grading
+    except IntegrityError:
+        session.rollback()
+        return error(409, "submission refused", [{"field": "assignment_id", "rule": (
+            f"attempt {attempt} of assignment {assignment.id} was just taken by another submission; submit again")}])
     if not specs:  # a checkpoint sheet: graded now on stored measurements, nothing queued
         assignments.grade_now(session=session, submission=submission, sheet=sheet, backend=body.backend or "cpu")
     session.commit()  # nothing is enqueued before the submission and all its case runs are durable

@@ -63,10 +63,13 @@ def upgrade() -> None:
         batch_op.add_column(sa.Column('late_seconds', sa.Integer(), nullable=True))
         batch_op.create_index(batch_op.f('ix_submissions_assignment_id'), ['assignment_id'], unique=False)
         batch_op.create_foreign_key('fk_submissions_assignment_id', 'assignments', ['assignment_id'], ['id'])
+        batch_op.create_unique_constraint('uq_submissions_assignment_id_student_id_attempt',
+                                          ['assignment_id', 'student_id', 'attempt'])
 
 
 def downgrade() -> None:
     with op.batch_alter_table('submissions') as batch_op:
+        batch_op.drop_constraint('uq_submissions_assignment_id_student_id_attempt', type_='unique')
         batch_op.drop_constraint('fk_submissions_assignment_id', type_='foreignkey')
         batch_op.drop_index(batch_op.f('ix_submissions_assignment_id'))
         batch_op.drop_column('late_seconds')
