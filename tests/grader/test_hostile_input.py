@@ -300,3 +300,11 @@ def test_the_audit_csv_writes_utc_with_an_offset():
                             right_variant="cpu/64/warm", left_provenance=None, right_provenance=None,
                             classification="identical", summary="")
     assert entries_csv([entry]).splitlines()[1].startswith("1,2026-01-02T03:04:05+00:00,")
+
+
+def test_a_repeated_query_parameter_is_refused_naming_it(api):
+    response = api.client.get("/v1/audit/entries?case=N1&case=N2", headers=api.as_("tess"))
+    assert response.status_code == 422
+    assert response.json()["errors"] == [{"field": "query.case", "rule": "given more than once; give one value"}]
+    once = api.client.get("/v1/audit/entries?case=N1", headers=api.as_("tess"))
+    assert once.status_code == 200
