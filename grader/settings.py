@@ -32,6 +32,10 @@ class Settings(BaseSettings):
     max_infra_retries: int = Field(3, ge=0, le=10)
     execution_mode: Literal["warm", "isolated"] = "warm"
     warm_max_cases: int = Field(50, ge=1)
+    # A warm case process resets and reuses a scene already built for a case of the same structure (same dt,
+    # substeps, bodies) instead of building anew; only friction and per-case loop settings change. On because
+    # tests/worker/test_scene_reuse.py proves the arrays equal, sample for sample, to a fresh scene's.
+    scene_reuse: bool = True
     max_body_bytes: int = Field(1_000_000, gt=0)
     # A sheet is about 6 levels deep; deeper JSON is refused before anything walks it.
     max_json_depth: int = Field(32, ge=4, le=200)

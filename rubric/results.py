@@ -75,6 +75,9 @@ class Provenance(BaseModel):
     seed: int
     deterministic_algorithms: bool
     execution_mode: Literal["isolated", "warm"]
+    # Which scene produced the arrays: built for this case, or built for an earlier case of the same structure and
+    # reset (worker.engine.structure_key). Absent in results stored before scene reuse existed: those were fresh.
+    scene: Literal["fresh", "reused"] = "fresh"
     host: str
     pid: int
     timings: Timings

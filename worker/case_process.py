@@ -1,8 +1,9 @@
 """Parent side of case execution: start a case process, keep its output, validate what it wrote, return a result.
 
 Never imports Genesis: the case runs in an isolated case process (`worker.isolated_process`, one process per case,
-the lesson's contract) or in a warm case process (`worker.warm_process`, long-lived, a fresh scene per case, recycled
-after a bounded number of cases or any error). Either way the parent accepts arrays only after checking shapes,
+the lesson's contract) or in a warm case process (`worker.warm_process`, long-lived, a scene built per case or one
+built for an earlier case of the same structure reset and reused, recycled after a bounded number of cases or any
+error). Either way the parent accepts arrays only after checking shapes,
 finiteness and provenance against the spec.
 """
 
@@ -149,10 +150,13 @@ def _read(path: Path) -> str:
 
 
 class WarmCaseProcess:
-    """One long-lived Genesis process building a fresh scene per case; recycled after max_cases or any failure."""
+    """One long-lived Genesis process building a scene per case (or reusing one of the same structure); recycled after
+    max_cases or any failure."""
 
-    def __init__(self, *, max_cases: int = WARM_MAX_CASES):
+    def __init__(self, *, max_cases: int = WARM_MAX_CASES, reuse_scenes: bool = False):
         self.max_cases = max_cases
+        # Reset and reuse a scene built for an earlier case of the same structure (worker.engine.structure_key).
+        self.reuse_scenes = reuse_scenes
         self.cases_run = 0
         self.processes_started = 0
         self._proc: subprocess.Popen | None = None
@@ -206,7 +210,7 @@ class WarmCaseProcess:
             self._start()
         spec_path = _prepare(spec, out_dir)
         started = time.perf_counter()
-        self._proc.stdin.write(json.dumps({"spec": str(spec_path), "out_dir": str(out_dir)}) + "\n")
+        self._proc.stdin.write(json.dumps({"spec": str(spec_path), "out_dir": str(out_dir), "reuse": self.reuse_scenes}) + "\n")
         self._proc.stdin.flush()
         self.cases_run += 1
         ready, _, _ = select.select([self._reply], [], [], timeout_s)

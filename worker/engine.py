@@ -12,6 +12,8 @@ import platform
 import re
 import sys
 import time
+from collections import OrderedDict
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +40,7 @@ def ensure_genesis(backend: str, precision: str, seed: int):
     key = (backend, precision, seed)
     if _state["key"] != key:
         if _state["key"] is not None:
+            drop_scenes()
             gs.destroy()
             _state.pop("device_name", None)
         t1 = time.perf_counter()
@@ -127,6 +130,73 @@ def _discretization(scene, start: dict, *, samples: int, settle_steps: int = 0) 
     }
 
 
+@dataclass
+class BuiltScene:
+    scene: object
+    table: object
+    camera: object
+    bodies: list  # the contact case's cube, or the friction case's lane cubes in lane order
+    build_s: float
+
+
+# Built scenes kept for reuse, by structure key, least recently used first. Bounded: each holds engine fields.
+SCENE_CACHE_MAX = 6
+_scenes: "OrderedDict[str, BuiltScene]" = OrderedDict()
+
+# What a reused scene sets per case instead of building anew: friction coefficients are written into the built
+# geometry exactly as a build writes them, names and (unrendered) colours never enter the physics, and the rest only
+# shapes the stepping loop or the metrics. Everything else of the spec (dt, substeps, gravity, bodies, sizes,
+# positions, density, backend, precision, seed, render) is the structure: a different value builds a new scene.
+PER_CASE_FIELDS = {
+    "contact": {"name", "duration", "separation_tolerance", "upward_speed_tolerance", "tail_window",
+                ("table", "friction"), ("cube", "friction"), ("cube", "color")},
+    "friction": {"name", "duration", "settle_steps", "initial_speed", "stop_speed", "hold",
+                 ("table", "friction"), ("lanes", "friction"), ("lanes", "name"), ("lanes", "color")},
+}
+
+
+def structure_key(spec: ContactCase | FrictionCase) -> str:
+    """The spec less its per-case fields: two cases with one key can share a built scene."""
+    data = spec.model_dump(mode="json", exclude_computed_fields=True)
+    if spec.render:
+        return "render:" + json.dumps(data, sort_keys=True)  # a camera's frames show colours: never shared
+    for field in PER_CASE_FIELDS[spec.kind]:
+        if isinstance(field, str):
+            data.pop(field, None)
+            continue
+        parent, child = field
+        for item in data[parent] if isinstance(data[parent], list) else [data[parent]]:
+            item.pop(child, None)
+    return json.dumps(data, sort_keys=True)
+
+
+def _scene_for(gs, spec, reuse: bool) -> tuple[BuiltScene, str]:
+    """A built scene for this case: a kept one of the same structure, reset to its initial state ("reused"), or a
+    new one ("fresh"), kept for later cases when reuse is on."""
+    build = _build_contact if isinstance(spec, ContactCase) else _build_friction
+    if not reuse:
+        return build(gs, spec), "fresh"
+    key = structure_key(spec)
+    built = _scenes.get(key)
+    if built is not None:
+        _scenes.move_to_end(key)
+        built.scene.reset()
+        return built, "reused"
+    built = build(gs, spec)
+    _scenes[key] = built
+    while len(_scenes) > SCENE_CACHE_MAX:
+        _, old = _scenes.popitem(last=False)
+        old.scene.destroy()
+    return built, "fresh"
+
+
+def drop_scenes() -> None:
+    """Forget every kept scene (before Genesis is re-initialised, or after a failed case)."""
+    while _scenes:
+        _, old = _scenes.popitem()
+        old.scene.destroy()
+
+
 def contact_friction(scene, geoms_a: range, geoms_b: range) -> float:
     """The sliding friction the engine assigned to the live contacts between two geometry ranges (0.0: no contact).
 
@@ -159,7 +229,7 @@ def _geoms(entity) -> range:
     return range(entity.geom_start, entity.geom_end)
 
 
-def simulate_contact(gs, spec: ContactCase):
+def _build_contact(gs, spec: ContactCase) -> "BuiltScene":
     scene, table, camera = _scene(gs, spec, ((1.15, -0.95, 1.05), (0.35, 0.0, 0.78)))
     cube = scene.add_entity(
         gs.morphs.Box(size=(spec.cube.size,) * 3, pos=spec.cube.pos),
@@ -168,7 +238,15 @@ def simulate_contact(gs, spec: ContactCase):
     )
     t_build = time.perf_counter()
     scene.build()
-    build_s = time.perf_counter() - t_build
+    return BuiltScene(scene, table, camera, [cube], time.perf_counter() - t_build)
+
+
+def simulate_contact(gs, spec: ContactCase, *, reuse: bool = False):
+    built, scene_path = _scene_for(gs, spec, reuse)
+    scene, table, camera, cube, build_s = built.scene, built.table, built.camera, built.bodies[0], built.build_s
+    if scene_path == "reused":
+        table.set_friction(spec.table.friction)
+        cube.set_friction(spec.cube.friction)
     n = spec.n_steps
     out = {
         "t": np.empty(n),
@@ -200,23 +278,35 @@ def simulate_contact(gs, spec: ContactCase):
         frames["frame_final"] = _frame(camera)
         render_s += time.perf_counter() - t_r
     out["clearance"] = out["z"] - spec.cube.size / 2 - spec.table.top_z
-    return out | frames, {"build_s": build_s, "steps_s": steps_s, "render_s": render_s}, discretization
+    timings = {"build_s": build_s if scene_path == "fresh" else 0.0, "steps_s": steps_s, "render_s": render_s}
+    return out | frames, timings, discretization, scene_path
 
 
-def simulate_friction(gs, spec: FrictionCase):
+def _build_friction(gs, spec: FrictionCase) -> "BuiltScene":
     tx = spec.table.pos[0]
     scene, table, camera = _scene(gs, spec, ((tx, -2.0, 1.55), (tx, 0.0, 0.72)))
-    cubes = {
-        lane.name: scene.add_entity(
+    cubes = [
+        scene.add_entity(
             gs.morphs.Box(size=(spec.cube_size,) * 3, pos=(spec.start_x, lane.y, spec.rest_z)),
             material=gs.materials.Rigid(rho=spec.cube_rho, friction=lane.friction),
             surface=gs.surfaces.Default(color=lane.color),
         )
         for lane in spec.lanes
-    }
+    ]
     t_build = time.perf_counter()
     scene.build()
-    build_s = time.perf_counter() - t_build
+    return BuiltScene(scene, table, camera, cubes, time.perf_counter() - t_build)
+
+
+def simulate_friction(gs, spec: FrictionCase, *, reuse: bool = False):
+    built, scene_path = _scene_for(gs, spec, reuse)
+    scene, table, camera, build_s = built.scene, built.table, built.camera, built.build_s
+    # Lanes by position: a reused scene's bodies were added for another case's lane names.
+    cubes = {lane.name: body for lane, body in zip(spec.lanes, built.bodies)}
+    if scene_path == "reused":
+        table.set_friction(spec.table.friction)
+        for lane in spec.lanes:
+            cubes[lane.name].set_friction(lane.friction)
     t_steps = time.perf_counter()
     # Settle first, so the contact manifold exists before measurement time zero.
     for _ in range(spec.settle_steps):
@@ -267,7 +357,8 @@ def simulate_friction(gs, spec: FrictionCase):
         frames["frame_final"] = _frame(camera)
         render_s += time.perf_counter() - t_r
     steps_s = time.perf_counter() - t_steps - render_s
-    return out | frames, {"build_s": build_s, "steps_s": steps_s, "render_s": render_s}, discretization
+    timings = {"build_s": build_s if scene_path == "fresh" else 0.0, "steps_s": steps_s, "render_s": render_s}
+    return out | frames, timings, discretization, scene_path
 
 
 def _provenance(spec, mode: str, timings: dict, discretization: dict, rendering: dict, exit_status: int) -> dict:
@@ -319,8 +410,11 @@ def _dist_version(name: str) -> str:
         return "absent"
 
 
-def run_case_in_genesis(spec: ContactCase | FrictionCase, out_dir: Path, *, mode: str) -> int:
+def run_case_in_genesis(spec: ContactCase | FrictionCase, out_dir: Path, *, mode: str, reuse: bool = False) -> int:
     """Run one case and write arrays.npz + provenance.json into out_dir. Returns the process exit status.
+
+    reuse (warm case processes only): a scene already built for this structure is reset and reused; the provenance
+    says which ("fresh" or "reused").
 
     On failure nothing is written but the error on stderr: no arrays, so no partial result can be mistaken for one.
     """
@@ -331,7 +425,7 @@ def run_case_in_genesis(spec: ContactCase | FrictionCase, out_dir: Path, *, mode
             os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
         gs = ensure_genesis(spec.backend, spec.precision, spec.seed)
         simulate = simulate_contact if isinstance(spec, ContactCase) else simulate_friction
-        arrays, timings, discretization = simulate(gs, spec)
+        arrays, timings, discretization, scene_path = simulate(gs, spec, reuse=reuse)
     except ProvenanceError as exc:
         print(f"PROVENANCE ERROR [{spec.name}]: {exc}", file=sys.stderr, flush=True)
         return EXIT_PROVENANCE
@@ -345,7 +439,7 @@ def run_case_in_genesis(spec: ContactCase | FrictionCase, out_dir: Path, *, mode
     )
     if not spec.render:
         print(f"rendering SKIP [{spec.name}]: rendering disabled, frame fields are empty", flush=True)
-    provenance = _provenance(spec, mode, timings, discretization, rendering, EXIT_OK)
+    provenance = _provenance(spec, mode, timings, discretization, rendering, EXIT_OK) | {"scene": scene_path}
     tmp = out_dir / "arrays.tmp.npz"
     np.savez(tmp, **arrays)
     (out_dir / "provenance.json").write_text(json.dumps(provenance, indent=2))
@@ -353,7 +447,7 @@ def run_case_in_genesis(spec: ContactCase | FrictionCase, out_dir: Path, *, mode
     tmp.replace(out_dir / "arrays.npz")
     print(
         f"case {spec.name}: backend={provenance['actual_backend']} samples={spec.sample_count} "
-        f"build={timings['build_s']:.2f}s steps={timings['steps_s']:.2f}s",
+        f"scene={scene_path} build={timings['build_s']:.2f}s steps={timings['steps_s']:.2f}s",
         flush=True,
     )
     return EXIT_OK

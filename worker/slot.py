@@ -21,7 +21,7 @@ def run_case_in_slot(spec, out_dir: Path, mode: str | None = None):
 
     mode = mode or settings.execution_mode
     if mode == "warm" and _warm_process is None:
-        _warm_process = WarmCaseProcess(max_cases=settings.warm_max_cases)
+        _warm_process = WarmCaseProcess(max_cases=settings.warm_max_cases, reuse_scenes=settings.scene_reuse)
     return run_case(spec, out_dir, mode=mode, timeout_s=settings.case_time_limit_s,
                     warm_process=_warm_process if mode == "warm" else None)
 

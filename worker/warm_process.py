@@ -1,6 +1,6 @@
-"""Warm case process: one long-lived Genesis process that builds a fresh scene per case.
+"""Warm case process: one long-lived Genesis process that builds a scene per case, or resets a kept one (reuse).
 
-Protocol: the parent writes one JSON line per case ({"spec": path, "out_dir": path}) on stdin; this process answers
+Protocol: the parent writes one JSON line per case ({"spec": path, "out_dir": path, "reuse": bool}) on stdin; this process answers
 one JSON line ({"exit_status": int}) on the file descriptor given as argv[1]. During each case, fds 1 and 2 point at
 that case's stdout.txt / stderr.txt, so evidence is captured per case exactly as in isolated mode.
 """
@@ -34,7 +34,7 @@ def main(reply_fd: int) -> int:
         _redirect(str(out_dir / "stdout.txt"), str(out_dir / "stderr.txt"))
         try:
             spec = parse_case(json.loads(Path(request["spec"]).read_text()))
-            status = run_case_in_genesis(spec, out_dir, mode="warm")
+            status = run_case_in_genesis(spec, out_dir, mode="warm", reuse=bool(request.get("reuse")))
         except Exception:
             traceback.print_exc()
             status = EXIT_ERROR
