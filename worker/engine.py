@@ -229,7 +229,7 @@ def _geoms(entity) -> range:
     return range(entity.geom_start, entity.geom_end)
 
 
-def _build_contact(gs, spec: ContactCase) -> "BuiltScene":
+def _build_contact(gs, spec: ContactCase, n_envs: int = 0) -> "BuiltScene":
     scene, table, camera = _scene(gs, spec, ((1.15, -0.95, 1.05), (0.35, 0.0, 0.78)))
     cube = scene.add_entity(
         gs.morphs.Box(size=(spec.cube.size,) * 3, pos=spec.cube.pos),
@@ -237,7 +237,8 @@ def _build_contact(gs, spec: ContactCase) -> "BuiltScene":
         surface=gs.surfaces.Default(color=spec.cube.color),
     )
     t_build = time.perf_counter()
-    scene.build()
+    # n_envs > 0 (parallel environments) only in tools/batched_envs_check.py: off in service, arrays not equal.
+    scene.build(n_envs=n_envs)
     return BuiltScene(scene, table, camera, [cube], time.perf_counter() - t_build)
 
 
@@ -282,7 +283,7 @@ def simulate_contact(gs, spec: ContactCase, *, reuse: bool = False):
     return out | frames, timings, discretization, scene_path
 
 
-def _build_friction(gs, spec: FrictionCase) -> "BuiltScene":
+def _build_friction(gs, spec: FrictionCase, n_envs: int = 0) -> "BuiltScene":
     tx = spec.table.pos[0]
     scene, table, camera = _scene(gs, spec, ((tx, -2.0, 1.55), (tx, 0.0, 0.72)))
     cubes = [
@@ -294,7 +295,8 @@ def _build_friction(gs, spec: FrictionCase) -> "BuiltScene":
         for lane in spec.lanes
     ]
     t_build = time.perf_counter()
-    scene.build()
+    # n_envs > 0 (parallel environments) only in tools/batched_envs_check.py: off in service, arrays not equal.
+    scene.build(n_envs=n_envs)
     return BuiltScene(scene, table, camera, cubes, time.perf_counter() - t_build)
 
 
