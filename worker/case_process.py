@@ -29,7 +29,7 @@ from rubric.results import discretization_problems
 from .errors import EXIT_PROVENANCE, EXIT_RENDER
 
 DEFAULT_TIMEOUT_S = 900.0
-WARM_MAX_CASES = 50
+WARM_MAX_CASES = 500
 EVIDENCE_FILES = ("arrays.npz", "arrays.tmp.npz", "provenance.json", "metrics.json", "stdout.txt", "stderr.txt")
 
 
