@@ -71,11 +71,13 @@ def draw_figures(submission_id: int, results: dict) -> tuple[str, list]:
     or changes the grade: it is recorded (the returned note becomes an event) and the pages show no figures.
     Returns the note and the paths drawn.
     """
-    from worker.figures import lab_figures
+    from worker.figures import FigureCache, lab_figures
 
     folder = settings.figures_dir(submission_id)
+    cache = FigureCache(settings.artifacts_dir / "figure-cache")
     try:
-        paths = lab_figures(results, folder)
+        paths = lab_figures(results, folder, cache=cache)
     except Exception as exc:  # noqa: BLE001 - the evidence of a drawing bug is the event, the grade stands
         return f"figures failed: {type(exc).__name__}: {exc}", []
-    return f"{len(paths)} figures drawn in {folder}", paths
+    return (f"{len(paths)} figures in {folder} ({cache.drawn} drawn, {cache.copied} copied from the figure cache: "
+            f"same runs, same drawing code)"), paths

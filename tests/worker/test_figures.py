@@ -166,3 +166,27 @@ def test_a_tumbled_lane_is_named_in_words_on_its_figures(measured, lab_pngs, tmp
     description = _meta(path)["Description"]
     assert "low: stopped at t=" in description and "TUMBLED (max tilt 90.0\u00b0): not a sliding stop" in description
     assert "high: stopped at t=" in description and description.count("TUMBLED") == 1
+
+
+def test_a_cached_figure_is_the_drawn_figure_byte_for_byte_and_other_runs_are_drawn_anew(measured, tmp_path):
+    from worker.figures import FigureCache
+
+    results = {name: measured[name] for name in ("N1", "N2", "friction-baseline", "friction-table-0.30")}
+    first = FigureCache(tmp_path / "cache")
+    drawn = figures.lab_figures(results, tmp_path / "first", cache=first)
+    assert (first.drawn, first.copied) == (len(drawn), 0)
+
+    second = FigureCache(tmp_path / "cache")
+    copied = figures.lab_figures(results, tmp_path / "second", cache=second)
+    assert (second.drawn, second.copied) == (0, len(drawn))
+    assert [p.name for p in copied] == [p.name for p in drawn]
+    for a, b in zip(drawn, copied):
+        assert a.read_bytes() == b.read_bytes(), a.name
+
+    # Another table-friction run (other arrays under the same name) shares only the figures that do not show it.
+    other = dataclasses.replace(measured["friction-baseline"], spec=measured["friction-baseline"].spec.model_copy(
+        update={"name": "friction-table-0.30"}))
+    third = FigureCache(tmp_path / "cache")
+    figures.lab_figures(results | {"friction-table-0.30": other}, tmp_path / "third", cache=third)
+    # Drawn anew: its friction figure, its comparison with the baseline, its frames schematic.
+    assert (third.drawn, third.copied) == (3, len(drawn) - 3)

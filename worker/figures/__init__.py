@@ -6,7 +6,8 @@ or threads. Each figure names its cases, backend and engine version in a footer:
 must still say where its numbers came from. Numbers drawn (stops, pair frictions, separation, first contact) are
 the run's stored metrics (rubric.metrics), computed once where the case ran.
 
-Modules: common (canvas, footer, metrics), contact (Part A), friction (Part B), frames (camera or schematic).
+Modules: common (canvas, footer, metrics), contact (Part A), friction (Part B), frames (camera or schematic),
+cache (a figure drawn once per distinct input, copied after).
 """
 
 from __future__ import annotations
@@ -14,8 +15,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
-from rubric import CaseResult, FrictionCase
+from rubric import CaseResult, ContactCase, FrictionCase
 
+from .cache import FigureCache
 from .common import CAMERA_TITLE, DPI, SCHEMATIC_TITLE, provenance_line
 from .contact import clearance_figure, contact_figures, contact_trajectory_figure
 from .frames import frames_figure, has_frames
@@ -23,23 +25,35 @@ from .friction import friction_comparison_figure, friction_figure, stop_note
 
 
 def lab_figures(results: Mapping[str, CaseResult], out_dir: str | Path, *,
-                baseline: str = "friction-baseline") -> list[Path]:
+                baseline: str = "friction-baseline", cache: FigureCache | None = None) -> list[Path]:
     """Every L03 figure the results support: contact, per friction run, frames, and the baseline compared with
     every other friction run (the lab's table-0.30 run, a student's own table exercise, the colour-swapped control),
-    whatever each is named."""
+    whatever each is named. With a cache, a figure whose inputs were drawn before is copied, not drawn."""
     out_dir = Path(out_dir)
-    paths = contact_figures(results, out_dir)
+    cache = cache or FigureCache(None)
+    paths = []
+    contact = [r for r in results.values() if isinstance(r.spec, ContactCase)]
+    if contact:
+        paths += [
+            cache.figure("contact_trajectories", contact, out_dir,
+                         lambda: contact_trajectory_figure(contact, out_dir / "contact_trajectories.png")),
+            cache.figure("contact_clearance", contact, out_dir,
+                         lambda: clearance_figure(contact, out_dir / "contact_clearance.png")),
+        ]
     friction = [r for r in results.values() if isinstance(r.spec, FrictionCase)]
-    paths += [friction_figure(r, out_dir) for r in friction]
+    paths += [cache.figure("friction", [r], out_dir, lambda r=r: friction_figure(r, out_dir)) for r in friction]
     if baseline in results:
-        paths += [friction_comparison_figure(results[baseline], r, out_dir)
+        base = results[baseline]
+        paths += [cache.figure("friction_comparison", [base, r], out_dir,
+                               lambda r=r: friction_comparison_figure(base, r, out_dir))
                   for r in friction if r.spec.name != baseline]
-    paths += [frames_figure(r, out_dir) for r in results.values()]
+    paths += [cache.figure("frames", [r], out_dir, lambda r=r: frames_figure(r, out_dir)) for r in results.values()]
     return paths
 
 
 __all__ = [
     "CAMERA_TITLE",
+    "FigureCache",
     "DPI",
     "SCHEMATIC_TITLE",
     "clearance_figure",
