@@ -110,7 +110,7 @@ def provenance_rows(results: Mapping[str, CaseResult]) -> list[dict[str, str]]:
             "device": f"{p.torch_device} ({p.device_name})",
             "versions": ", ".join(f"{k} {v}" for k, v in sorted(p.versions.items())),
             "precision / seed": f"{p.precision} / {p.seed}",
-            "execution mode": p.execution_mode,
+            "execution mode": f"{p.execution_mode}, {p.scene} scene",
             "timings (s)": (f"import {t.import_s:.1f}, init {t.init_s:.1f}, build {t.build_s:.1f}, "
                             f"steps {t.steps_s:.2f}, render {t.render_s:.2f}; wall {r.wall_s:.1f}"),
             "rendering": f"{p.rendering.status} ({p.rendering.frames} frames): {p.rendering.detail}",
