@@ -106,7 +106,7 @@ def test_provenance_per_case(tmp_path, measured, pngs):
     for name, row in rows.items():
         p = measured[name].provenance
         assert row["actual backend"] == p.actual_backend == "cpu"
-        assert row["execution mode"] == "warm"
+        assert row["execution mode"] == "warm, fresh scene"  # the fixture builds a scene per case
         assert f"genesis {p.versions['genesis']}" in row["versions"]
         assert row["rendering"].startswith("SKIP")
     assert "import " in text and "SKIP (0 frames)" in text
