@@ -1,18 +1,22 @@
 """Assignments: which rubric items one holds, the dates that apply to a student, whether a submission may be taken
-now, and how a late attempt's penalty turns its raw score into the counted one."""
+now, how a late attempt's penalty turns its raw score into the counted one, and which items a student sees yet."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import datetime, timedelta
 
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from grader.models import Assignment, Extension, Submission, User
+from grader.timezones import iso
 
 DAY_S = 86400
+HOUR = timedelta(hours=1)
+# Gradescope's per-test visibility for each of ours (its "after_published": once the instructor publishes grades).
+GRADESCOPE_VISIBILITY = {"immediate": "visible", "after_due": "after_due_date", "on_release": "after_published"}
 
 
 def item_ids(lesson: str, items: str) -> list[str]:
@@ -49,32 +53,45 @@ def attempts_used(*, session: Session, assignment: Assignment, student: User) ->
 
 
 class Refused(Exception):
-    """A submission the assignment does not take now; `field` and `rule` say why (with the time that applies)."""
+    """A submission the assignment does not take now; `field` and `rule` say why (with the time that applies).
+    `retry_after_s` is set when waiting helps (the hourly limit): the API answers 429 with Retry-After."""
 
-    def __init__(self, field: str, rule: str):
+    def __init__(self, field: str, rule: str, retry_after_s: int | None = None):
         super().__init__(rule)
-        self.field, self.rule = field, rule
+        self.field, self.rule, self.retry_after_s = field, rule, retry_after_s
 
 
-def iso(at: datetime) -> str:
-    return at.isoformat() + "+00:00"
+def submitted_last_hour(*, session: Session, assignment: Assignment, student: User, now: datetime) -> list[datetime]:
+    return list(session.scalars(select(Submission.created_at).where(
+        Submission.assignment_id == assignment.id, Submission.student_id == student.id,
+        Submission.created_at > now - HOUR).order_by(Submission.created_at)))
 
 
 def admit(*, session: Session, assignment: Assignment, student: User, now: datetime) -> tuple[int, int]:
     """(attempt number, seconds late) for a submission at `now` (naive UTC); Refused before open, after the hard
-    close that applies to the student, or beyond the attempt limit."""
+    close that applies to the student, beyond the attempt limit or beyond the submissions allowed per hour."""
+    tz = assignment.course.timezone
     if now < assignment.open_at:
-        raise Refused("assignment_id", f"assignment {assignment.id} opens at {iso(assignment.open_at)}; "
-                                       f"it is {iso(now)}")
+        raise Refused("assignment_id", f"assignment {assignment.id} opens at {iso(assignment.open_at, tz)}; "
+                                       f"it is {iso(now, tz)}")
     dates = dates_for(session=session, assignment=assignment, student=student)
     if now > dates.hard_close_at:
         whose = "your extension's" if dates.extension else "its"
-        raise Refused("assignment_id", f"assignment {assignment.id} closed at {iso(dates.hard_close_at)} ({whose} "
-                                       f"hard close); it is {iso(now)}")
+        raise Refused("assignment_id", f"assignment {assignment.id} closed at {iso(dates.hard_close_at, tz)} "
+                                       f"({whose} hard close); it is {iso(now, tz)}")
     used = attempts_used(session=session, assignment=assignment, student=student)
     if assignment.max_attempts is not None and used >= assignment.max_attempts:
         raise Refused("assignment_id", f"assignment {assignment.id} allows {assignment.max_attempts} attempts; "
                                        f"{used} already submitted")
+    if assignment.max_per_hour is not None:
+        recent = submitted_last_hour(session=session, assignment=assignment, student=student, now=now)
+        if len(recent) >= assignment.max_per_hour:
+            # The window frees a place when the oldest submission that fills it turns an hour old.
+            next_at = recent[len(recent) - assignment.max_per_hour] + HOUR
+            raise Refused("assignment_id", (
+                f"assignment {assignment.id} allows {assignment.max_per_hour} submissions per hour; "
+                f"{len(recent)} in the last hour, the next is allowed at {iso(next_at, tz)}"),
+                retry_after_s=max(1, math.ceil((next_at - now).total_seconds())))
     late = max(0, math.ceil((now - dates.due_at).total_seconds()))
     return used + 1, late
 
@@ -147,31 +164,102 @@ def grade_now(*, session: Session, submission: Submission, sheet, backend: str =
     return grade
 
 
-def counted_grades(*, session: Session, assignment: Assignment) -> list[Counted]:
-    """Per student, the attempt that counts (latest graded, or best counted score, ties to the later), by name."""
+def _graded(*, session: Session, assignment: Assignment, student_id: int | None = None):
     from grader.models import Grade
 
-    rows = session.execute(select(Submission, Grade).join(Grade, Grade.submission_id == Submission.id)
-                           .where(Submission.assignment_id == assignment.id, Grade.superseded_at.is_(None))
-                           .order_by(Submission.attempt)).all()
+    query = (select(Submission, Grade).join(Grade, Grade.submission_id == Submission.id)
+             .where(Submission.assignment_id == assignment.id, Grade.superseded_at.is_(None)))
+    if student_id is not None:
+        query = query.where(Submission.student_id == student_id)
+    return session.execute(query.order_by(Submission.attempt)).all()
+
+
+def _counting(assignment: Assignment, rows) -> dict[int, Counted]:
+    """Per student id, the attempt that counts: the latest graded, or the best counted score (ties to the later)."""
     by_student: dict[int, Counted] = {}
     for submission, grade in rows:
         this = counted_score(assignment, submission, grade.total, grade.max_total)
         held = by_student.get(submission.student_id)
         if held is None or assignment.counted_attempt == "latest" or this.counted >= held.counted:
             by_student[submission.student_id] = this
-    return sorted(by_student.values(), key=lambda c: c.submission.student.name)
+    return by_student
+
+
+def counted_grades(*, session: Session, assignment: Assignment) -> list[Counted]:
+    """Per student, the attempt that counts (latest graded, or best counted score, ties to the later), by name."""
+    return sorted(_counting(assignment, _graded(session=session, assignment=assignment)).values(),
+                  key=lambda c: c.submission.student.name)
+
+
+def counted_for(*, session: Session, submission: Submission) -> tuple[Counted | None, int | None]:
+    """This graded submission's raw, penalty and counted score, and the id of its student's attempt that counts."""
+    assignment = submission.assignment
+    rows = _graded(session=session, assignment=assignment, student_id=submission.student_id)
+    counting = _counting(assignment, rows).get(submission.student_id)
+    mine = next((counted_score(assignment, s, g.total, g.max_total) for s, g in rows if s.id == submission.id), None)
+    return mine, counting.submission.id if counting else None
+
+
+def attempts_by_student(*, session: Session, assignment: Assignment) -> dict[int, list[Submission]]:
+    """Every submission to the assignment, per student id, in attempt order."""
+    out: dict[int, list[Submission]] = {}
+    for s in session.scalars(select(Submission).where(Submission.assignment_id == assignment.id)
+                             .order_by(Submission.attempt)):
+        out.setdefault(s.student_id, []).append(s)
+    return out
+
+
+def visibility_of(assignment: Assignment, item_id: str) -> str:
+    """The item's own visibility where the assignment sets one, else the assignment's."""
+    return (assignment.item_visibility or {}).get(item_id, assignment.visibility)
+
+
+def withheld_items(*, session: Session, submission: Submission, user: User, now: datetime) -> dict[str, str]:
+    """{item id: why `user` may not see its score and feedback yet}. Staff see everything; a student sees an item at
+    once (immediate), from the due date that applies to them (after_due) or once the assignment is released."""
+    assignment = submission.assignment
+    if assignment is None or user.role != "student":
+        return {}
+    why = {"immediate": None}
+    kinds = {visibility_of(assignment, i) for i in item_ids(assignment.lesson, assignment.items)}
+    if "after_due" in kinds:
+        due = dates_for(session=session, assignment=assignment, student=submission.student).due_at
+        why["after_due"] = None if now >= due else (
+            f"shown after the due date, {iso(due, assignment.course.timezone)}")
+    if "on_release" in kinds:
+        why["on_release"] = None if assignment.released_at is not None else (
+            f"shown once assignment {assignment.id} is released by an instructor")
+    hidden = {i: why[visibility_of(assignment, i)] for i in item_ids(assignment.lesson, assignment.items)}
+    return {i: reason for i, reason in hidden.items() if reason}
 
 
 def withheld(*, session: Session, submission: Submission, user: User, now: datetime) -> str | None:
-    """Why `user` may not see this submission's scores and feedback yet, or None. Staff always see them; a student
-    sees them at once (immediate), from the due date that applies to them (after_due) or once released."""
-    assignment = submission.assignment
-    if assignment is None or user.role != "student" or assignment.visibility == "immediate":
+    """Why `user` may see none of this submission's scores and feedback yet (every item withheld), or None."""
+    hidden = withheld_items(session=session, submission=submission, user=user, now=now)
+    if not hidden or len(hidden) < len(item_ids(submission.assignment.lesson, submission.assignment.items)):
         return None
-    if assignment.visibility == "after_due":
-        due = dates_for(session=session, assignment=assignment, student=submission.student).due_at
-        return None if now >= due else f"scores and feedback are shown after the due date, {iso(due)}"
-    if assignment.released_at is None:
-        return f"scores and feedback are shown once assignment {assignment.id} is released by an instructor"
-    return None
+    return "scores and feedback are " + " and ".join(sorted(set(hidden.values())))
+
+
+def shown_report(report: dict, hidden: dict[str, str]) -> dict:
+    """The stored report as a student may see it: each withheld item keeps its question, points and the student's
+    own prediction, but its score is None and its feedback says when it will be shown; the total counts the shown
+    items only and `pending` says which points are still to come. Nothing is regraded on release."""
+    if not hidden:
+        return report
+    items, total, shown_max, pending_points = [], 0.0, 0.0, 0.0
+    for item in report.get("items", []):
+        if item["id"] in hidden:
+            pending_points += item["points"]  # its worth, not max_score: that would tell an inconclusive one apart
+            items.append({k: item[k] for k in ("id", "part", "kind", "question", "prediction", "points")}
+                         | {"score": None, "max_score": item["points"], "verdict": "pending", "expected": "",
+                            "measured": "", "evidence": None, "tolerances": {}, "backends": {},
+                            "feedback": f"withheld: {hidden[item['id']]}"})
+        else:
+            total, shown_max = total + item["score"], shown_max + item["max_score"]
+            items.append(item)
+    names = [i["id"] for i in items if i["id"] in hidden]
+    max_total = shown_max + pending_points
+    note = (f"{pending_points:g} of {max_total:g} points pending ({', '.join(names)}): "
+            + "; ".join(sorted(set(hidden.values()))))
+    return {**report, "items": items, "total": round(total, 6), "max_total": max_total, "pending": note}

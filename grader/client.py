@@ -65,6 +65,30 @@ class Client:
     def assignments(self, course: str) -> list:
         return self._ok(self.http.get(f"/courses/{course}/assignments"))
 
+    def release(self, assignment_id: int) -> dict:
+        return self._ok(self.http.post(f"/assignments/{assignment_id}/release"))
+
+    def extend(self, assignment_id: int, body: dict) -> dict:
+        return self._ok(self.http.post(f"/assignments/{assignment_id}/extensions", json=body))
+
+    def counted_grades(self, assignment_id: int) -> list:
+        return self._ok(self.http.get(f"/assignments/{assignment_id}/grades"))
+
+    def counted_grades_csv(self, assignment_id: int) -> str:
+        response = self.http.get(f"/assignments/{assignment_id}/grades.csv")
+        if response.is_error:
+            self._ok(response)
+        return response.text
+
+    def course(self, course: str) -> dict:
+        return self._ok(self.http.get(f"/courses/{course}"))
+
+    def update_course(self, course: str, body: dict) -> dict:
+        return self._ok(self.http.patch(f"/courses/{course}", json=body))
+
+    def import_roster(self, course: str, csv_text: str) -> list:
+        return self._ok(self.http.post(f"/courses/{course}/roster", json={"csv": csv_text}))
+
     def wait(self, submission_id: int, *, poll_s: float = 1.0, on_progress: Callable[[dict], None] | None = None,
              timeout_s: float | None = None) -> dict:
         """Poll until graded or failed; on_progress gets every status body."""

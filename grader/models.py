@@ -34,6 +34,8 @@ class Course(Base):
     id: Mapped[int] = mapped_column(primary_key=True)
     name: Mapped[str] = mapped_column(String(64), unique=True)
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    # The IANA zone the course's times are shown in (pages, refusal messages); they are stored in UTC regardless.
+    timezone: Mapped[str] = mapped_column(String(64), default="UTC", server_default="UTC")
 
 
 class User(Base):
@@ -85,8 +87,11 @@ class Assignment(Base):
     late_penalty_per_day: Mapped[float] = mapped_column(Float, default=0.0)  # fraction of the raw score per day
     late_penalty_cap: Mapped[float | None] = mapped_column(Float)  # the most the penalty may take, as a fraction
     max_attempts: Mapped[int | None] = mapped_column(Integer)
+    max_per_hour: Mapped[int | None] = mapped_column(Integer)  # submissions per student in any 60 minutes
     counted_attempt: Mapped[str] = mapped_column(String(8))  # latest | best
     visibility: Mapped[str] = mapped_column(String(16))  # immediate | after_due | on_release
+    # Items shown otherwise than `visibility`: {item id: immediate | after_due | on_release}.
+    item_visibility: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict, server_default="{}")
     released_at: Mapped[datetime | None] = mapped_column(DateTime)
     created_by_id: Mapped[int] = mapped_column(ForeignKey("users.id"))
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)

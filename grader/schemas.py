@@ -107,6 +107,15 @@ class SubmissionPublic(BaseModel):
     assignment_id: int | None = None
     attempt: int | None = Field(None, description="Attempt number within its assignment (1, 2, ...)")
     late_seconds: int | None = Field(None, description="Seconds after the due date that applied (0: on time)")
+    pending: str | None = Field(None, description=(
+        "Which items' points are still withheld from this student and until when; `total` then counts the shown "
+        "items only (null while every item is withheld)"))
+    raw_score: float | None = Field(None, description="A graded attempt's score before the late penalty (null while "
+                                                      "any of its items is withheld from the caller)")
+    penalty: float | None = Field(None, description="Fraction of the raw score taken for lateness")
+    counted_score: float | None = Field(None, description="The raw score less the late penalty")
+    counts: bool | None = Field(None, description=(
+        "Whether this is the attempt that counts for its student (latest or best, as the assignment says)"))
 
 
 class GradeItemPublic(BaseModel):
@@ -114,7 +123,7 @@ class GradeItemPublic(BaseModel):
 
     id: str
     question: str
-    score: float
+    score: float | None = Field(description="None while the item is withheld from the caller (verdict pending)")
     max_score: float
     verdict: str
     feedback: str
@@ -132,6 +141,8 @@ class GradePublic(BaseModel):
     created_at: UtcDateTime
     superseded_at: UtcDateTime | None = None  # set once a committed regrade replaced this grade
     regrade_id: int | None = None  # the regrade that wrote this grade; None for the first grading
+    pending: str | None = Field(None, description=(
+        "Which items are withheld from this student and until when; `total` then counts the shown items only"))
 
 
 class GradeHistoryEntry(BaseModel):
@@ -175,6 +186,9 @@ def _naive_utc(value: datetime) -> datetime:
 UtcInput = Annotated[AwareDatetime, AfterValidator(_naive_utc)]
 
 
+Visibility = Literal["immediate", "after_due", "on_release"]
+
+
 class AssignmentCreate(Strict):
     """An assignment of one lesson in the instructor's course. Times are ISO 8601 with an offset."""
 
@@ -191,8 +205,15 @@ class AssignmentCreate(Strict):
     late_penalty_cap: float | None = Field(None, ge=0.0, le=1.0, allow_inf_nan=False,
                                            description="The most the late penalty may take, as a fraction")
     max_attempts: int | None = Field(None, ge=1, le=1000)
+    max_per_hour: int | None = Field(None, ge=1, le=1000, description=(
+        "Submissions one student may make in any 60 minutes; past it 429 with Retry-After"))
     counted_attempt: Literal["latest", "best"] = "latest"
-    visibility: Literal["immediate", "after_due", "on_release"] = "immediate"
+    visibility: Visibility = Field("immediate", description=(
+        "When students see scores and feedback: at once, from the due date that applies to them, or once released"))
+    item_visibility: dict[Annotated[str, Field(max_length=16)], Visibility] = Field(
+        default_factory=dict, max_length=64, description=(
+            "Items shown otherwise than `visibility`, e.g. {\"C3\": \"on_release\"}; each must be one of the "
+            "assignment's items"))
 
     @field_validator("due_at")
     @classmethod
@@ -248,8 +269,10 @@ class AssignmentPublic(BaseModel):
     late_penalty_per_day: float
     late_penalty_cap: float | None
     max_attempts: int | None
+    max_per_hour: int | None
     counted_attempt: str
     visibility: str
+    item_visibility: dict[str, str] = Field(description="Items shown otherwise than `visibility`")
     released_at: UtcDateTime | None
     created_by: str
     created_at: UtcDateTime
@@ -281,3 +304,15 @@ class RosterEntry(BaseModel):
     email: str
     created: bool = Field(description="False when the student was already on the roster (name and email updated)")
     token: str | None = Field(description="The new student's API token, shown this once; None on a re-import")
+
+
+class CoursePublic(BaseModel):
+    name: str
+    timezone: str = Field(description="IANA time zone the course's times are shown in (stored in UTC)")
+    created_at: UtcDateTime
+
+
+class CourseUpdate(Strict):
+    """Settings of a course an instructor may change."""
+
+    timezone: str = Field(min_length=1, max_length=64, description="An IANA time zone name, e.g. Europe/Berlin")

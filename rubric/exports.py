@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 from .scoring import GradeReport
 
@@ -42,10 +42,19 @@ def grades_csv(reports: Sequence[tuple[str, GradeReport]], *,
     return out.getvalue()
 
 
-def gradescope_results(report: GradeReport, execution_time: float) -> dict:
-    """Gradescope autograder results.json: overall score and one visible test per rubric item."""
+GRADESCOPE_VISIBILITIES = ("visible", "after_due_date", "after_published", "hidden")
+
+
+def gradescope_results(report: GradeReport, execution_time: float,
+                       visibility: Mapping[str, str] | None = None) -> dict:
+    """Gradescope autograder results.json: overall score and one test per rubric item, each with Gradescope's
+    visibility: `visibility` maps an item id to one of GRADESCOPE_VISIBILITIES ("visible" where it says none)."""
     if execution_time < 0:
         raise ValueError(f"execution_time must be >= 0 seconds, got {execution_time}")
+    visibility = visibility or {}
+    unknown = {k: v for k, v in visibility.items() if v not in GRADESCOPE_VISIBILITIES}
+    if unknown:
+        raise ValueError(f"Gradescope visibility must be one of {', '.join(GRADESCOPE_VISIBILITIES)}; got {unknown}")
     header = (f"{report.lesson} graded under rubric version {report.rubric_version} "
               f"(sha256 {report.rubric_hash[:12]}): {_number(report.total)} / {_number(report.max_total)}")
     notes = [f"config: {finding}" for finding in report.config_findings]
@@ -61,7 +70,7 @@ def gradescope_results(report: GradeReport, execution_time: float) -> dict:
                 "score": item.score,
                 "max_score": item.max_score,
                 "output": item.feedback,
-                "visibility": "visible",
+                "visibility": visibility.get(item.id, "visible"),
             }
             for item in report.items
         ],

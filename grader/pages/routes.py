@@ -19,13 +19,23 @@ from grader import crud
 from grader.api.deps import MAX_ID, SessionDep
 from grader.api.routes.files import EVIDENCE
 from grader.core.rubrics import current_grade, grade_history
-from grader.assignments import withheld
+from grader.assignments import shown_report, withheld_items
 from grader.models import Grade, Submission, utcnow
 from grader.pages.auth import PageUser, clear_session_cookie, set_session_cookie
 from grader.pages.views import report_view
 from grader.settings import settings
 
 TEMPLATES = Jinja2Templates(directory=str(Path(__file__).resolve().parent.parent / "templates"))
+
+
+def local_time(at, user, seconds: bool = False) -> str:
+    """A stored time as the signed-in user's course shows it: in the course's time zone, named."""
+    from grader.timezones import local
+
+    return local(at, user.course.timezone if user else "UTC", seconds=seconds)
+
+
+TEMPLATES.env.filters["local"] = local_time
 PART_TITLES = {
     "A": "Part A: contact and time step", "B": "Part B: friction and stopping distance",
     "checkpoint": "Concept checkpoints", "hands_on": "Hands-on exercise", "extension": "Extension",
@@ -88,16 +98,29 @@ def _safe_next(target: str) -> str:
     return target if target.startswith("/") and not target.startswith("//") else "/submissions"
 
 
+def shown_grade(session, submission: Submission, user) -> tuple[Grade | None, bool]:
+    """The current grade as `user` may see it now, and whether any of it is withheld. A grade with some items
+    withheld is a copy (never stored) whose report masks them (grader.assignments.shown_report); with every item
+    withheld there is none to show."""
+    grade = current_grade(session, submission.id)
+    hidden = withheld_items(session=session, submission=submission, user=user, now=utcnow())
+    if grade is None or not hidden:
+        return grade, bool(hidden)
+    report = shown_report(grade.report, hidden)
+    if all(item["id"] in hidden for item in report.get("items", [])):
+        return None, True
+    return Grade(submission_id=grade.submission_id, rubric_lesson=grade.rubric_lesson,
+                 rubric_version=grade.rubric_version, rubric_hash=grade.rubric_hash, total=report["total"],
+                 max_total=report["max_total"], report=report, execution_s=grade.execution_s,
+                 created_at=grade.created_at), True
+
+
 @router.get("/submissions", response_class=HTMLResponse)
 def submissions_page(request: Request, session: SessionDep, user: PageUser):
     if user is None:
         return _sign_in_redirect(request)
     rows = crud.visible_submissions(session=session, user=user)
-    grades = {g.submission_id: g for g in session.scalars(
-        select(Grade).where(Grade.submission_id.in_([s.id for s in rows]), Grade.superseded_at.is_(None)))} if rows else {}
-    now = utcnow()
-    grades = {i: g for i, g in grades.items()
-              if not withheld(session=session, submission=session.get(Submission, i), user=user, now=now)}
+    grades = {s.id: g for s in rows if (g := shown_grade(session, s, user)[0]) is not None}
     return TEMPLATES.TemplateResponse(request, "submissions.html",
                                       {"user": user, "submissions": rows[::-1], "grades": grades})
 
@@ -109,8 +132,7 @@ def report_page(request: Request, submission_id: int, session: SessionDep, user:
     submission = _readable(session, user, submission_id)
     if submission is None:
         return _not_found(request, user, f"submission {submission_id}")
-    hidden = withheld(session=session, submission=submission, user=user, now=utcnow())
-    grade = None if hidden else current_grade(session, submission.id)
+    grade, hidden = shown_grade(session, submission, user)
     view = report_view(submission, grade)
     return TEMPLATES.TemplateResponse(request, "report.html", {
         "user": user, "view": view, "part_titles": PART_TITLES,
@@ -119,12 +141,13 @@ def report_page(request: Request, submission_id: int, session: SessionDep, user:
 
 @router.get("/submissions/{submission_id}/results.json")
 def results_download(request: Request, submission_id: int, session: SessionDep, user: PageUser):
-    """The stored grade report (every item with prediction, expected, evidence, tolerances and verdict) as JSON."""
+    """The stored grade report (every item with prediction, expected, evidence, tolerances and verdict) as JSON;
+    for a student, the items their assignment withholds yet are masked."""
     if user is None:
         return _sign_in_redirect(request)
     submission = _readable(session, user, submission_id)
-    grade = current_grade(session, submission.id) if submission else None
-    if grade is None or withheld(session=session, submission=submission, user=user, now=utcnow()):
+    grade = shown_grade(session, submission, user)[0] if submission else None
+    if grade is None:
         return _not_found(request, user, f"grade of submission {submission_id}")
     from fastapi.responses import JSONResponse
 

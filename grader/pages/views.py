@@ -18,7 +18,7 @@ from rubric.metrics import TUMBLE_EXPLANATION, tumble_angle_deg
 FIRST_RUN_NOTE_AFTER_S = 20.0
 VERDICT_LABEL = {
     "credit": "credit", "no_credit": "no credit", "inconclusive": "inconclusive (not counted)",
-    "one_factor_violation": "config fault", "not_measured": "not measured",
+    "one_factor_violation": "config fault", "not_measured": "not measured", "pending": "pending (not shown yet)",
 }
 
 
@@ -50,7 +50,7 @@ class ItemRow:
     tolerances: list[dict]
     verdict: str
     verdict_label: str
-    score: float
+    score: float | None  # None while withheld from the student (verdict pending)
     points: float
     counted: bool
     feedback: str
@@ -205,7 +205,7 @@ def report_view(submission: Submission, grade: Grade | None) -> ReportView:
     report = grade.report
     rubric = _rubric(grade)
     for item in report.get("items", []):
-        counted = item["verdict"] != "inconclusive"
+        counted = item["verdict"] not in ("inconclusive", "pending")
         view.items.append(ItemRow(
             id=item["id"], part=item["part"], kind=item["kind"], question=item["question"],
             prediction=_prediction(item["prediction"]), expected=item["expected"], measured=item.get("measured", ""),

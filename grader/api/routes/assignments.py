@@ -25,8 +25,8 @@ def assignment_public(a: Assignment) -> AssignmentPublic:
         id=a.id, course=a.course.name, title=a.title, lesson=a.lesson, items=a.items,
         item_ids=logic.item_ids(a.lesson, a.items), open_at=a.open_at, due_at=a.due_at, hard_close_at=a.hard_close_at,
         late_penalty_per_day=a.late_penalty_per_day, late_penalty_cap=a.late_penalty_cap,
-        max_attempts=a.max_attempts, counted_attempt=a.counted_attempt, visibility=a.visibility,
-        released_at=a.released_at, created_by=a.created_by.name, created_at=a.created_at)
+        max_attempts=a.max_attempts, max_per_hour=a.max_per_hour, counted_attempt=a.counted_attempt,
+        visibility=a.visibility, item_visibility=a.item_visibility or {}, released_at=a.released_at, created_by=a.created_by.name, created_at=a.created_at)
 
 
 def own_course(course: str, session, user: User) -> Course:
@@ -55,6 +55,12 @@ def create_assignment(course: Name, body: AssignmentCreate, session: SessionDep,
     """Create an assignment in the instructor's own course."""
     row = own_course(course, session, user)
     instructor(user)
+    held = logic.item_ids(body.lesson, body.items)
+    strangers = [{"field": f"item_visibility.{item}",
+                  "rule": f"not an item of this assignment ({body.items}: {', '.join(held)})"}
+                 for item in body.item_visibility if item not in held]
+    if strangers:
+        raise FieldError(422, "invalid assignment", strangers)
     assignment = Assignment(course_id=row.id, created_by_id=user.id, **body.model_dump())
     session.add(assignment)
     session.commit()

@@ -1,16 +1,17 @@
-"""A course's submissions and class dashboard, for its instructors and auditors."""
+"""A course: its settings (time zone), and its submissions, class dashboard and roster for its staff."""
 
 from fastapi import APIRouter, HTTPException, status
 from sqlalchemy import select
 
 from grader import crud, roster
+from grader.timezones import is_zone
 from grader.api.errors import FieldError
 from grader.api.deps import CurrentUser, Name, SessionDep
 from grader.api.responses import errors
 from grader.api.views import submission_public
 from grader.models import Course
 from grader.dashboard import Dashboard, course_dashboard
-from grader.schemas import RosterEntry, RosterImport, SubmissionPublic
+from grader.schemas import CoursePublic, CourseUpdate, RosterEntry, RosterImport, SubmissionPublic
 
 router = APIRouter(prefix="/courses", tags=["courses"], responses=errors(401, 403, 404, 422))
 
@@ -23,6 +24,39 @@ def staff_course(course: str, session, user) -> Course:
     if user.role == "student":
         raise HTTPException(status.HTTP_403_FORBIDDEN, "students see only their own submissions")
     return row
+
+
+def member_course(course: str, session, user) -> Course:
+    """The caller's own course; any other is 404, whether or not it exists."""
+    row = session.scalar(select(Course).where(Course.name == course))
+    if row is None or row.id != user.course_id:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"course {course!r} not found")
+    return row
+
+
+def course_public(row: Course) -> CoursePublic:
+    return CoursePublic(name=row.name, timezone=row.timezone, created_at=row.created_at)
+
+
+@router.get("/{course}", response_model=CoursePublic)
+def get_course(course: Name, session: SessionDep, user: CurrentUser):
+    """The course's settings: its time zone (anyone in the course)."""
+    return course_public(member_course(course, session, user))
+
+
+@router.patch("/{course}", response_model=CoursePublic, responses=errors(413))
+def update_course(course: Name, body: CourseUpdate, session: SessionDep, user: CurrentUser):
+    """Set the course's time zone, an IANA name (instructors). Times stay stored in UTC; pages and refusal messages
+    show them in this zone. An unknown zone is 422 naming the field."""
+    row = member_course(course, session, user)
+    if user.role != "instructor":
+        raise HTTPException(status.HTTP_403_FORBIDDEN, "only instructors change a course's settings")
+    if not is_zone(body.timezone):
+        raise FieldError(422, "invalid course settings", [{"field": "timezone", "rule": (
+            f"{body.timezone!r} is not an IANA time zone name (e.g. UTC, Europe/Berlin, America/New_York)")}])
+    row.timezone = body.timezone
+    session.commit()
+    return course_public(row)
 
 
 @router.get("/{course}/submissions", response_model=list[SubmissionPublic])

@@ -51,11 +51,17 @@ def course_grades_csv(course: Name, session: SessionDep, user: CurrentUser, late
 
 @router.get("/submissions/{submission_id}/gradescope.json", responses=errors(409, _409="Not graded yet"))
 def gradescope(submission: SubmissionDep, session: SessionDep, user: CurrentUser) -> dict:
-    """Gradescope results.json for one graded submission."""
+    """Gradescope results.json for one graded submission; each item's visibility is its assignment's for that item
+    (immediate: visible, after_due: after_due_date, on_release: after_published)."""
     _instructor(user)
     grade = current_grade(session, submission.id)
     if grade is None:
         raise HTTPException(status.HTTP_409_CONFLICT, f"submission {submission.id} is {submission.status}, not graded")
     from rubric.exports import gradescope_results
 
-    return gradescope_results(_report(grade), grade.execution_s)
+    from grader.assignments import GRADESCOPE_VISIBILITY, visibility_of
+
+    report = _report(grade)
+    shown = ({i.id: GRADESCOPE_VISIBILITY[visibility_of(submission.assignment, i.id)] for i in report.items}
+             if submission.assignment is not None else {})
+    return gradescope_results(report, grade.execution_s, shown)

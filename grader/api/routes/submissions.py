@@ -22,18 +22,21 @@ from grader.schemas import CaseRunPublic, EventPublic, GradeHistoryEntry, GradeP
 log = logging.getLogger(__name__)
 router = APIRouter(prefix="/submissions", tags=["submissions"], responses=errors(401))
 ONE = errors(404, 422)
-NOT_GRADED = errors(409, _409="Not graded yet, or not shown to this student yet (its assignment withholds scores "
-                                "until the due date or a release); the detail says which")
+NOT_GRADED = errors(409, _409="Not graded yet, or not shown to this student yet (its assignment withholds every "
+                                "item's score until the due date or a release); the detail says which")
 
 
 # NaN/Infinity and deep nesting never reach this handler: grader.api.bodies refuses them for every JSON body.
 @router.post("", status_code=status.HTTP_202_ACCEPTED, response_model=SubmissionPublic,
              responses=errors(403, 409, 413, 422, 429, _409=(
                  "Refused by its assignment: not open yet, past its hard close, or no attempt left; the rule "
-                 "names the time that applies")), dependencies=[Depends(limit_submissions)])
+                 "names the time that applies"), _429=(
+                 "Too many submissions: this token's rate, or the assignment's max_per_hour for this student; retry "
+                 "after Retry-After seconds")), dependencies=[Depends(limit_submissions)])
 def create_submission(body: SubmissionCreate, session: SessionDep, user: CurrentUser):
     """Validate a sheet and its case configs, store the submission and its case runs, then queue every case.
-    Each token may submit at most RATE_LIMIT_SUBMISSIONS (429 with Retry-After past it)."""
+    Each token may submit at most RATE_LIMIT_SUBMISSIONS, and a student at most an assignment's max_per_hour to it
+    (429 with Retry-After past either)."""
     if user.role not in ("student", "instructor"):
         raise HTTPException(status.HTTP_403_FORBIDDEN, f"role {user.role} may not submit")
     assignment = None
@@ -46,6 +49,9 @@ def create_submission(body: SubmissionCreate, session: SessionDep, user: Current
             attempt, late_seconds = assignments.admit(session=session, assignment=assignment, student=user,
                                                       now=utcnow())
         except assignments.Refused as exc:
+            if exc.retry_after_s is not None:
+                return error(429, "submission refused", [{"field": exc.field, "rule": exc.rule}],
+                             headers={"Retry-After": str(exc.retry_after_s)})
             return error(409, "submission refused", [{"field": exc.field, "rule": exc.rule}])
     try:
         sheet = sheets.parse_sheet(body.sheet, assignment.items if assignment else "sheet")
@@ -82,11 +88,16 @@ def create_submission(body: SubmissionCreate, session: SessionDep, user: Current
     return submission_public(submission, session, user)
 
 
-def shown_later(submission, session, user) -> None:
-    """409 while the submission's assignment withholds its scores and feedback from this student."""
+def shown_later(submission, session, user, *, any_item: bool = False) -> dict[str, str]:
+    """409 while the submission's assignment withholds every item's score and feedback from this student (with
+    `any_item`, while it withholds any); else the items withheld, with why."""
+    hidden = assignments.withheld_items(session=session, submission=submission, user=user, now=utcnow())
     why = assignments.withheld(session=session, submission=submission, user=user, now=utcnow())
+    if any_item and hidden and not why:
+        why = "some items' scores and feedback are " + " and ".join(sorted(set(hidden.values())))
     if why:
         raise HTTPException(status.HTTP_409_CONFLICT, f"grade of submission {submission.id} is withheld: {why}")
+    return hidden
 
 
 @router.get("", response_model=list[SubmissionPublic])
@@ -105,18 +116,19 @@ def get_submission(submission: SubmissionDep, session: SessionDep, user: Current
             responses={**ONE, **NOT_GRADED})
 def get_grade(submission: SubmissionDep, session: SessionDep, user: CurrentUser):
     """The grade with per-item score, feedback and measured evidence."""
-    shown_later(submission, session, user)
+    hidden = shown_later(submission, session, user)
     grade = current_grade(session, submission.id)
     if grade is None:
         detail = f"submission {submission.id} is {submission.status}, not graded"
         raise HTTPException(status.HTTP_409_CONFLICT, detail + (f": {submission.error}" if submission.error else ""))
-    return grade_public(grade)
+    return grade_public(grade, assignments.shown_report(grade.report, hidden))
 
 
 @router.get("/{submission_id}/grades", response_model=list[GradeHistoryEntry], responses={**ONE, **NOT_GRADED})
 def list_grades(submission: SubmissionDep, session: SessionDep, user: CurrentUser):
-    """Every grade the submission has had, oldest first: the first grading, then one per committed regrade."""
-    shown_later(submission, session, user)
+    """Every grade the submission has had, oldest first: the first grading, then one per committed regrade (once
+    every item is shown to the caller: the totals would tell a withheld score)."""
+    shown_later(submission, session, user, any_item=True)
     return grade_history_public(grade_history(session, submission.id))
 
 
