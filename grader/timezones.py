@@ -7,9 +7,13 @@ from functools import lru_cache
 from zoneinfo import ZoneInfo, available_timezones
 
 
+# Files of the system's zoneinfo folder that are not zone names a course should pick.
+NOT_ZONES = {"localtime", "posixrules", "Factory"}
+
+
 @lru_cache(maxsize=1)
 def _known() -> frozenset[str]:
-    return frozenset(available_timezones())
+    return frozenset(n for n in available_timezones() if n not in NOT_ZONES and not n.startswith(("posix/", "right/")))
 
 
 def is_zone(name: str) -> bool:
