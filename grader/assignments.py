@@ -191,6 +191,16 @@ def counted_grades(*, session: Session, assignment: Assignment) -> list[Counted]
                   key=lambda c: c.submission.student.name)
 
 
+def counted_public(c: Counted):
+    """A counted grade as the API shows it (grader.schemas.CountedGradePublic)."""
+    from grader.schemas import CountedGradePublic
+
+    return CountedGradePublic(student=c.submission.student.name, submission_id=c.submission.id,
+                              attempt=c.submission.attempt, submitted_at=c.submission.created_at,
+                              late_seconds=c.submission.late_seconds or 0, raw_score=c.raw, max_score=c.max_total,
+                              penalty=c.penalty, counted_score=c.counted)
+
+
 def counted_for(*, session: Session, submission: Submission) -> tuple[Counted | None, int | None]:
     """This graded submission's raw, penalty and counted score, and the id of its student's attempt that counts."""
     assignment = submission.assignment

@@ -3,7 +3,8 @@
 Counts submissions by state, lists case runs that failed or are stuck with their reason (and whether an instructor
 may re-send them), takes each student's latest graded attempt for the item analysis (rubric.analysis), the roster
 and the predictions against what was measured (H1, H4), and spreads the course's key measurements by the backend
-that produced them. The charts (grader.pages.dashboard) are drawn from this same data, never from a second query.
+that produced them, and gives each assignment's counted grades. The charts (grader.pages.dashboard) are drawn
+from this same data, never from a second query.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from sqlalchemy.orm import Session, selectinload
 
 from grader.core.rubrics import current_grade
 from grader.models import CaseRun, Course, Event, Grade, Submission, User, utcnow
-from grader.schemas import UtcDateTime
+from grader.schemas import CountedGradePublic, UtcDateTime
 from grader.settings import settings
 
 
@@ -99,6 +100,18 @@ class BackendSpread(BaseModel):
     groups: list[MeasurementGroup]
 
 
+class AssignmentGrades(BaseModel):
+    """One assignment of the course with each student's counted grade (grader.assignments.counted_grades)."""
+
+    id: int
+    title: str
+    items: str
+    due_at: UtcDateTime
+    counted_attempt: str
+    page: str  # the instructor's page of the assignment
+    grades: list[CountedGradePublic]
+
+
 class Dashboard(BaseModel):
     course: str
     lesson: str | None
@@ -110,6 +123,7 @@ class Dashboard(BaseModel):
     analysis: dict[str, Any]
     predictions: list[PredictionPlot]
     backends: BackendSpread
+    assignments: list[AssignmentGrades] = []
 
 
 # --- grades: every Grade query of this module goes through current_grades / current_grade ------------------------
@@ -391,7 +405,21 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
         analysis=class_analysis([report for _, report in graded]).model_dump(mode="json"),
         predictions=predictions(course, graded),
         backends=backend_spread(session, course),
+        assignments=assignment_grades(session, course),
     )
+
+
+def assignment_grades(session: Session, course: Course) -> list[AssignmentGrades]:
+    """Every assignment of the course, by due date, with the counted grade of each student who has one."""
+    from grader.assignments import counted_grades, counted_public
+    from grader.models import Assignment
+
+    rows = session.scalars(select(Assignment).where(Assignment.course_id == course.id)
+                           .order_by(Assignment.due_at, Assignment.id)).all()
+    return [AssignmentGrades(id=a.id, title=a.title, items=a.items, due_at=a.due_at, counted_attempt=a.counted_attempt,
+                             page=f"/assignments/{a.id}",
+                             grades=[counted_public(c) for c in counted_grades(session=session, assignment=a)])
+            for a in rows]
 
 
 def chart_data(dashboard: Dashboard) -> str:

@@ -50,6 +50,7 @@ def import_roster(course: str, csv_file: Path, tokens_out: Path | None, url: str
             out.write("student_id,token\n" + "".join(f"{e['student']},{e['token']}\n" for e in new))
     for e in entries:
         shown = "" if out is not None or not e["created"] else f"  token {e['token']}"
-        click.echo(f"{e['student']:<12} {'created' if e['created'] else 'updated':<8} {e['name']} <{e['email']}>{shown}")
+        state = "created" if e["created"] else "updated"
+        click.echo(f"{e['student']:<12} {state:<8} {e['name']} <{e['email']}>{shown}")
     where = f", their tokens in {tokens_out} (mode 0600)" if out is not None else ""
     click.echo(f"{len(new)} new students, {len(entries) - len(new)} updated{where}")

@@ -26,7 +26,8 @@ def assignment_public(a: Assignment) -> AssignmentPublic:
         item_ids=logic.item_ids(a.lesson, a.items), open_at=a.open_at, due_at=a.due_at, hard_close_at=a.hard_close_at,
         late_penalty_per_day=a.late_penalty_per_day, late_penalty_cap=a.late_penalty_cap,
         max_attempts=a.max_attempts, max_per_hour=a.max_per_hour, counted_attempt=a.counted_attempt,
-        visibility=a.visibility, item_visibility=a.item_visibility or {}, released_at=a.released_at, created_by=a.created_by.name, created_at=a.created_at)
+        visibility=a.visibility, item_visibility=a.item_visibility or {}, released_at=a.released_at,
+        created_by=a.created_by.name, created_at=a.created_at)
 
 
 def own_course(course: str, session, user: User) -> Course:
@@ -120,11 +121,7 @@ def grant_extension(assignment_id: RowId, body: ExtensionCreate, session: Sessio
 def _counted(assignment_id: int, session, user: User) -> tuple[Assignment, list[CountedGradePublic]]:
     assignment = readable_assignment(assignment_id, session, user)
     instructor(user)
-    rows = [CountedGradePublic(student=c.submission.student.name, submission_id=c.submission.id,
-                               attempt=c.submission.attempt, submitted_at=c.submission.created_at,
-                               late_seconds=c.submission.late_seconds or 0, raw_score=c.raw, max_score=c.max_total,
-                               penalty=c.penalty, counted_score=c.counted)
-            for c in logic.counted_grades(session=session, assignment=assignment)]
+    rows = [logic.counted_public(c) for c in logic.counted_grades(session=session, assignment=assignment)]
     return assignment, rows
 
 
