@@ -29,7 +29,7 @@ def test_the_page_shows_settings_students_attempts_lateness_and_counted_grades(a
     page = api.client.get(f"/assignments/{aid}", headers=api.as_("prof"))
     assert page.status_code == 200, page.text
     text = page.text
-    assert "Checkpoints week 3" in text and "10.0% per started day" in text and "the best counts" in text
+    assert "Checkpoints week 3" in text and "10% per started day" in text and "the best counts" in text
     assert "not released yet" in text and "on release <span class=\"muted\">(own setting)" in text
     # alice: two attempts, both a day and some hours late (2 days charged), the first counts: 4 less 20% is 3.2.
     assert f'id="attempt-{first["id"]}" class="counts"' in text and f'id="attempt-{second["id"]}">' in text

@@ -1,0 +1,103 @@
+"""The instructor's assignment page in a real browser (Debian's chromium driven by Playwright) over the API on
+loopback with PostgreSQL. Checkpoint sheets are graded in the request, so no worker and no Genesis run is needed.
+The screenshot lands in out/screenshots/ (or $SCREENSHOTS_DIR)."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
+
+import pytest
+
+from tests import services
+from tests.factories import create_people
+from tests.grader.test_assignments import checkpoint_sheet
+from tests.integration.helpers import SHOTS, signed_in
+
+pytestmark = pytest.mark.integration
+COURSE = "l03-assign"
+
+
+@dataclass
+class Api:
+    url: str
+    tokens: dict[str, str]
+
+    def client(self, who: str):
+        from grader.client import Client
+
+        return Client(self.url, self.tokens[who])
+
+
+@pytest.fixture(scope="module")
+def api(tmp_path_factory):
+    """The API alone (uvicorn) on a fresh PostgreSQL database; nothing is ever enqueued here."""
+    from sqlalchemy.orm import Session
+
+    from grader.core.db import make_engine, migrate
+
+    data_dir = tmp_path_factory.mktemp("assignment-page")
+    with services.postgres_database() as database_url:
+        migrate(database_url)
+        engine = make_engine(database_url)
+        with Session(engine) as session:
+            tokens = create_people(session, course=COURSE, other_course="other-course")
+            session.commit()
+        engine.dispose()
+        env = dict(os.environ, DATABASE_URL=database_url, BROKER_URL=services.REDIS_URL, DATA_DIR=str(data_dir),
+                   PYTHONPATH=str(services.ROOT))
+        port = services.free_port()
+        proc = services.start_api(env, port, data_dir / "api.log")
+        try:
+            yield Api(f"http://127.0.0.1:{port}", tokens)
+        finally:
+            services.stop(proc)
+
+
+def at(**delta) -> str:
+    return (datetime.now(UTC).replace(microsecond=0) + timedelta(**delta)).isoformat()
+
+
+def test_the_instructor_opens_an_assignment_from_the_dashboard_and_reads_every_students_grade(browser, api):
+    prof = api.client("prof")
+    prof.update_course(COURSE, {"timezone": "Europe/Berlin"})
+    prof.import_roster(COURSE, "student_id,name,email\ns1001,Ada Lovelace,ada@example.edu\n")
+    assignment = prof.create_assignment(COURSE, {
+        "title": "Week 3 checkpoints", "items": "checkpoints", "open_at": at(days=-3), "due_at": at(hours=-26),
+        "hard_close_at": at(days=2), "late_penalty_per_day": 0.1, "late_penalty_cap": 0.3, "counted_attempt": "best",
+        "item_visibility": {"C3": "on_release"}, "max_attempts": 3})
+    aid = assignment["id"]
+    prof.extend(aid, {"student": "bob", "due_at": at(days=1), "hard_close_at": at(days=2)})
+    first = api.client("alice").submit(checkpoint_sheet("alice"), assignment_id=aid)
+    worse = checkpoint_sheet("alice")
+    worse["answers"]["C2"]["reason"] = "it_is_valid"
+    api.client("alice").submit(worse, assignment_id=aid)
+    api.client("bob").submit(checkpoint_sheet("bob"), assignment_id=aid)
+    grades = {g["student"]: g for g in prof.counted_grades(aid)}
+
+    page = signed_in(browser, api, "prof")
+    page.click("text=Class dashboard")
+    page.click(f"a[href='/assignments/{aid}']")
+    page.wait_for_selector("#students")
+    assert page.inner_text("h1") == f"Assignment {aid}: Week 3 checkpoints"
+    settings = page.inner_text("#settings")
+    assert "CET" in settings and "10% per started day, at most 30%" in settings and "immediate; C3 on release" in settings and "not released yet" in settings
+    counted = page.locator("#students tr.counts")
+    assert counted.count() == 2  # alice's first attempt and bob's
+    alice = page.locator(f"#attempt-{first['id']}").inner_text()
+    assert f"{grades['alice']['counted_score']:g}" in alice and "−20%" in alice and "2 days charged" in alice
+    bob = page.locator("#students tbody tr", has_text="bob").first.inner_text()
+    assert "extension" in bob and "granted by prof" in bob and "on time" in bob
+    assert "no attempt yet" in page.locator("#student-s1001").inner_text()
+    assert "own setting" in page.locator("#items").inner_text()
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    page.screenshot(path=str(SHOTS / "assignment.png"), full_page=True)
+    # The stylesheet came from the app itself.
+    assert page.evaluate("getComputedStyle(document.querySelector('header.top')).display") == "flex"
+    page.close()
+    # A student asking for the page gets the 404 page.
+    student = signed_in(browser, api, "alice")
+    student.goto(f"{api.url}/assignments/{aid}")
+    assert "Week 3 checkpoints" not in student.content()
+    student.close()
