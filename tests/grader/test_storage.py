@@ -23,6 +23,36 @@ def test_the_migration_creates_exactly_the_models(tmp_path):
     assert diff == []
 
 
+def down_to_0005_and_up(url: str) -> None:
+    """Migrations 0008-0006 go down, taking their columns, and up again; an existing course shows UTC after."""
+    from alembic import command
+    from alembic.config import Config
+    from sqlalchemy import inspect, text
+
+    from grader.core.db import MIGRATIONS, make_engine, migrate
+
+    migrate(url)
+    engine = make_engine(url)
+    with engine.begin() as conn:
+        conn.execute(text("INSERT INTO courses (name, created_at, timezone) "
+                          "VALUES ('c', CURRENT_TIMESTAMP, 'Europe/Berlin')"))
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS))
+    config.set_main_option("sqlalchemy.url", url.replace("%", "%%"))
+    command.downgrade(config, "0005")
+    with engine.connect() as conn:
+        columns = {c["name"] for table in ("assignments", "courses") for c in inspect(conn).get_columns(table)}
+    assert not columns & {"item_visibility", "max_per_hour", "timezone"} and "visibility" in columns
+    command.upgrade(config, "head")
+    with engine.connect() as conn:
+        assert conn.execute(text("SELECT timezone FROM courses WHERE name = 'c'")).scalar() == "UTC"
+    engine.dispose()
+
+
+def test_migrations_0006_to_0008_go_down_and_up(tmp_path):
+    down_to_0005_and_up(f"sqlite:///{tmp_path / 'm.db'}")
+
+
 def test_production_refuses_embedded_and_placeholder_urls():
     from grader.settings import Settings
 

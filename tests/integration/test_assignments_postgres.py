@@ -1,6 +1,8 @@
-"""Assignments on real PostgreSQL: migration 0005 creates exactly the models there, and the acceptance tests of
-tests/grader/test_assignments.py (checkpoint sheet graded with no case run, hard close, attempt limit, late penalty
-beside the raw score, extension) run again on the in-process app with DATABASE_URL pointed at PostgreSQL."""
+"""Assignments on real PostgreSQL: the migrations create exactly the models there (and 0008-0006 go down and up
+again), and the acceptance tests of tests/grader/test_assignments.py (checkpoint sheet graded with no case run, hard
+close, attempt limit, late penalty beside the raw score, extension) and test_assignment_visibility.py (an item hidden
+until release then shown with the same score, the hourly limit) run again on the in-process app with DATABASE_URL
+pointed at PostgreSQL."""
 
 from __future__ import annotations
 
@@ -18,6 +20,14 @@ from tests.grader.test_assignments import (  # noqa: F401 - collected here again
     test_scores_and_feedback_are_withheld_from_the_student_until_visible,
     test_the_counted_attempt_is_the_latest_or_the_best,
     test_two_submissions_racing_for_one_attempt_number_let_one_in,
+)
+from tests.grader.test_assignment_visibility import (  # noqa: F401 - collected here again, against PostgreSQL
+    test_a_withheld_item_is_hidden_everywhere_a_student_looks_then_shown_on_release_with_the_same_score,
+    test_each_submission_says_its_raw_penalty_counted_score_and_whether_it_counts,
+    test_submissions_past_the_hourly_limit_get_429_with_retry_after_naming_the_rule,
+)
+from tests.grader.test_course_settings import (  # noqa: F401 - collected here again, against PostgreSQL
+    test_refusals_and_pages_show_times_in_the_course_zone,
 )
 
 pytestmark = pytest.mark.integration
@@ -67,3 +77,9 @@ def test_the_migration_creates_exactly_the_models_on_postgresql(database_url):
         diff = compare_metadata(MigrationContext.configure(conn), Base.metadata)
     engine.dispose()
     assert diff == []
+
+
+def test_migrations_0006_to_0008_go_down_and_up_keeping_the_courses(database_url):
+    from tests.grader.test_storage import down_to_0005_and_up
+
+    down_to_0005_and_up(database_url)
