@@ -65,6 +65,9 @@ class Client:
     def assignments(self, course: str) -> list:
         return self._ok(self.http.get(f"/courses/{course}/assignments"))
 
+    def assignment(self, assignment_id: int) -> dict:
+        return self._ok(self.http.get(f"/assignments/{assignment_id}"))
+
     def release(self, assignment_id: int) -> dict:
         return self._ok(self.http.post(f"/assignments/{assignment_id}/release"))
 

@@ -102,13 +102,18 @@ def summary(client, submission_id: int, state: dict, url: str) -> Path:
     if state["status"] != "graded":
         click.echo(f"submission {submission_id} {state['status']}: {state['error']}", err=True)
         return folder
-    grade = client.grade(submission_id)
+    try:
+        grade = client.grade(submission_id)
+    except RuntimeError as exc:  # 409: its assignment withholds every score from this student yet
+        click.echo(str(exc).splitlines()[0])
+        return folder
     (folder / "grade.json").write_text(json.dumps(grade, indent=2, default=str))
     for item in grade["items"]:
-        click.echo(f"  {item['id']:4s} {item['score']:5.2f}/{item['max_score']:<5.2f} {item['verdict']:10s} "
+        score = "  –  " if item["score"] is None else f"{item['score']:5.2f}"  # withheld by its assignment
+        click.echo(f"  {item['id']:4s} {score}/{item['max_score']:<5.2f} {item['verdict']:10s} "
                    f"{item['feedback'][:90]}")
     click.echo(f"GRADE {grade['total']:g} / {grade['max_total']:g} (rubric {grade['rubric_lesson']} "
-               f"v{grade['rubric_version']})")
+               f"v{grade['rubric_version']})" + (f"; {grade['pending']}" if grade.get("pending") else ""))
     click.echo(f"report: {folder}/grade.json and {url}/v1/submissions/{submission_id}/grade")
     click.echo(f"report page: {url}/submissions/{submission_id} (sign in with the student token printed above)")
     click.echo(f"class dashboard: {url}/courses/demo/dashboard (sign in with the instructor token)")

@@ -22,6 +22,16 @@ def _item_visibility(ctx, param, values: tuple[str, ...]) -> dict[str, str]:
     return out
 
 
+def _in_zone(client, course: str):
+    """ISO times from the API (UTC) -> as the course shows them ('2026-12-08 10:00 CET')."""
+    from datetime import datetime
+
+    from grader.timezones import local
+
+    zone = _call(client.course, course)["timezone"]
+    return lambda iso: local(datetime.fromisoformat(iso.replace("Z", "+00:00")), zone)
+
+
 @click.group()
 def assignment() -> None:
     """Assignments of a course (instructors create; everyone in the course may list)."""
@@ -51,9 +61,11 @@ def create(course: str, url: str, token: str, **fields) -> None:
     """Create an assignment in COURSE."""
     body = {"late_penalty_per_day": fields.pop("penalty_per_day"), "late_penalty_cap": fields.pop("penalty_cap"),
             **fields}
-    row = _call(_client(url, token).create_assignment, course, body)
+    client = _client(url, token)
+    row = _call(client.create_assignment, course, body)
+    t = _in_zone(client, course)
     click.echo(f"assignment #{row['id']} {row['title']!r} ({row['items']}: {', '.join(row['item_ids'])}) "
-               f"open {row['open_at']}, due {row['due_at']}, closes {row['hard_close_at']}")
+               f"open {t(row['open_at'])}, due {t(row['due_at'])}, closes {t(row['hard_close_at'])}")
     if row["item_visibility"]:
         click.echo("shown " + ", ".join(f"{k} {v}" for k, v in row["item_visibility"].items()) +
                    f"; the other items {row['visibility']}")
@@ -65,10 +77,14 @@ def create(course: str, url: str, token: str, **fields) -> None:
 @TOKEN
 def list_assignments(course: str, url: str, token: str) -> None:
     """Every assignment of COURSE, by due date."""
-    for a in _call(_client(url, token).assignments, course):
+    client = _client(url, token)
+    t = _in_zone(client, course)
+    for a in _call(client.assignments, course):
         attempts = a["max_attempts"] or "unlimited"
-        click.echo(f"#{a['id']:<5} {a['title']:<28} {a['items']:<11} due {a['due_at']}  closes {a['hard_close_at']}  "
-                   f"attempts {attempts}, counts {a['counted_attempt']}, late {a['late_penalty_per_day']:g}/day")
+        per_hour = f" ({a['max_per_hour']}/hour)" if a["max_per_hour"] else ""
+        click.echo(f"#{a['id']:<3} {a['title']:<20} {a['items']:<11} due {t(a['due_at'])}, closes "
+                   f"{t(a['hard_close_at'])}; attempts {attempts}{per_hour}, counts {a['counted_attempt']}, "
+                   f"late {a['late_penalty_per_day']:g}/day")
 
 
 @assignment.command()
@@ -77,8 +93,10 @@ def list_assignments(course: str, url: str, token: str) -> None:
 @TOKEN
 def release(assignment_id: int, url: str, token: str) -> None:
     """Show ASSIGNMENT_ID's withheld scores and feedback (items on_release) to its students, without regrading."""
-    row = _call(_client(url, token).release, assignment_id)
-    click.echo(f"assignment #{row['id']} {row['title']!r} released at {row['released_at']}")
+    client = _client(url, token)
+    row = _call(client.release, assignment_id)
+    released = _in_zone(client, row["course"])(row["released_at"])
+    click.echo(f"assignment #{row['id']} {row['title']!r} released at {released}")
 
 
 @assignment.command()
@@ -90,9 +108,11 @@ def release(assignment_id: int, url: str, token: str) -> None:
 @TOKEN
 def extend(assignment_id: int, student: str, url: str, token: str, **dates) -> None:
     """Give STUDENT their own due date and hard close for ASSIGNMENT_ID (recorded with who granted it)."""
-    row = _call(_client(url, token).extend, assignment_id, {"student": student, **dates})
-    click.echo(f"{row['student']}: due {row['due_at']}, closes {row['hard_close_at']} "
-               f"(granted by {row['granted_by']} at {row['granted_at']})")
+    client = _client(url, token)
+    row = _call(client.extend, assignment_id, {"student": student, **dates})
+    t = _in_zone(client, _call(client.assignment, assignment_id)["course"])
+    click.echo(f"{row['student']}: due {t(row['due_at'])}, closes {t(row['hard_close_at'])} "
+               f"(granted by {row['granted_by']} at {t(row['granted_at'])})")
 
 
 @assignment.command()
@@ -113,9 +133,10 @@ def grades(assignment_id: int, url: str, token: str, csv_out: Path | None) -> No
             click.echo(f"{len(text.splitlines()) - 1} students written to {csv_out}")
         return
     rows = _call(client.counted_grades, assignment_id)
-    click.echo(f"{'student':<12} {'counted':>8} {'raw':>6} {'penalty':>8} {'attempt':>8}  submitted (UTC)")
+    t = _in_zone(client, _call(client.assignment, assignment_id)["course"])
+    click.echo(f"{'student':<12} {'counted':>8} {'raw':>6} {'penalty':>8} {'attempt':>8}  submitted")
     for r in rows:
         click.echo(f"{r['student']:<12} {r['counted_score']:>8g} {r['raw_score']:>6g} {r['penalty']:>8.0%} "
-                   f"{r['attempt']:>8}  {r['submitted_at']}")
+                   f"{r['attempt']:>8}  {t(r['submitted_at'])}")
     if not rows:
         click.echo("no graded submission yet")

@@ -83,18 +83,25 @@ def reconcile(every: float) -> None:
 @click.option("--backend", type=click.Choice(["cpu", "rocm", "cuda"]), help="Run every case on this backend.")
 @click.option("--force-rerun", is_flag=True, help="Measure afresh instead of reusing stored measurements.")
 @click.option("--no-wait", is_flag=True, help="Submit and print the id without following progress.")
-def submit(sheet_file, url: str, token: str, backend: str | None, force_rerun: bool, no_wait: bool) -> None:
+@click.option("--assignment", "assignment_id", type=int, default=None,
+              help="Submit to this assignment of your course (the sheet answers exactly its items).")
+def submit(sheet_file, url: str, token: str, backend: str | None, force_rerun: bool, no_wait: bool,
+           assignment_id: int | None) -> None:
     """Submit SHEET_FILE (YAML or JSON) to a running grading service and follow it to its grade."""
     from grader.client import Client, load_sheet
     from grader.embedded import follow, summary
 
     client = Client(url, token)
-    options = {"force_rerun": force_rerun, **({"backend": backend} if backend else {})}
+    options = {"force_rerun": force_rerun, **({"backend": backend} if backend else {}),
+               **({"assignment_id": assignment_id} if assignment_id else {})}
     try:
         created = client.submit(load_sheet(sheet_file), **options)
     except RuntimeError as exc:
         raise click.ClickException(str(exc)) from None
     click.echo(f"submission {created['id']}: {created['progress']['total']} case runs queued")
+    if created["attempt"]:
+        late = f"{created['late_seconds']} s late" if created["late_seconds"] else "on time"
+        click.echo(f"assignment {created['assignment_id']}, attempt {created['attempt']}, {late}")
     if no_wait:
         return
     state = follow(client, created["id"], created["progress"]["total"])

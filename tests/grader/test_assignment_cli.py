@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import stat
 
+from grader.client import Client
 from tests.grader.test_assignments import ROSTER, at, create, submit
 
 
@@ -11,10 +12,9 @@ def client_on(url, token):
     """The CLI's client, talking to the in-process app."""
     from fastapi.testclient import TestClient
 
-    from grader.client import Client
     from grader.main import app
 
-    c = Client(url, token)
+    c = Client(url, token)  # this module's name for the class, whatever a test patches in grader.client
     c.http = TestClient(app, base_url="http://testserver/v1", headers={"Authorization": f"Bearer {token}"})
     return c
 
@@ -96,3 +96,23 @@ def test_roster_import_writes_new_tokens_to_a_private_file_once(api, monkeypatch
     assert printed.exit_code == 0, printed.output
     lines = {line.split()[0]: line for line in printed.output.splitlines()[:-1]}
     assert "token " in lines["s1005"] and "token" not in lines["s1001"] and "token" not in lines["s1002"]
+
+
+def test_a_student_submits_to_an_assignment_and_sees_the_withheld_items_pending(api, monkeypatch, tmp_path):
+    import yaml
+
+    from grader import client as client_module
+    from grader.settings import settings
+    from tests.grader.test_assignments import checkpoint_sheet
+
+    monkeypatch.setattr(client_module, "Client", client_on)
+    monkeypatch.setattr(settings, "data_dir", tmp_path)
+    aid = create(api, due_at=at(hours=-2), hard_close_at=at(1), item_visibility={"C3": "on_release"}).json()["id"]
+    sheet = tmp_path / "sheet.yaml"
+    sheet.write_text(yaml.safe_dump(checkpoint_sheet()))
+    done = run(api, monkeypatch, "submit", str(sheet), "--assignment", str(aid), who="alice")
+    assert done.exit_code == 0, done.output
+    assert "attempt 1, 72" in done.output  # seconds late, about two hours
+    lines = {line.split()[0]: line for line in done.output.splitlines() if line.startswith("  C")}
+    assert "pending" in lines["C3"] and "withheld: shown once assignment" in lines["C3"]
+    assert "1 of 8 points pending (C3)" in done.output
