@@ -88,12 +88,25 @@ def admit(*, session: Session, assignment: Assignment, student: User, now: datet
         if len(recent) >= assignment.max_per_hour:
             # The window frees a place when the oldest submission that fills it turns an hour old.
             next_at = recent[len(recent) - assignment.max_per_hour] + HOUR
+            next_at = next_at.replace(microsecond=0) + timedelta(seconds=1 if next_at.microsecond else 0)
             raise Refused("assignment_id", (
                 f"assignment {assignment.id} allows {assignment.max_per_hour} submissions per hour; "
                 f"{len(recent)} in the last hour, the next is allowed at {iso(next_at, tz)}"),
                 retry_after_s=max(1, math.ceil((next_at - now).total_seconds())))
     late = max(0, math.ceil((now - dates.due_at).total_seconds()))
     return used + 1, late
+
+
+def late_text(seconds: int | None) -> str:
+    """'on time', or how late in days, hours and minutes and how many days the penalty charges."""
+    if not seconds:
+        return "on time"
+    days, rest = divmod(seconds, DAY_S)
+    hours, minutes = rest // 3600, rest % 3600 // 60
+    parts = [f"{days} d" if days else "", f"{hours} h" if hours else "", f"{minutes} min" if minutes else "",
+             f"{seconds} s" if seconds < 60 else ""]
+    charged = math.ceil(seconds / DAY_S)
+    return f"{' '.join(p for p in parts if p)} late ({charged} day{'s' if charged != 1 else ''} charged)"
 
 
 def penalty_fraction(assignment: Assignment, late_seconds: int) -> float:

@@ -28,7 +28,7 @@ def zone(name: str) -> ZoneInfo:
 
 def iso(at: datetime, timezone: str = "UTC") -> str:
     """A stored naive-UTC time as ISO 8601 in the course's zone, with its offset (and the zone's name unless UTC)."""
-    shown = at.replace(tzinfo=UTC).astimezone(zone(timezone)).isoformat()
+    shown = at.replace(tzinfo=UTC).astimezone(zone(timezone)).isoformat(timespec="seconds")
     return shown if timezone == "UTC" else f"{shown} ({timezone})"
 
 

@@ -100,8 +100,10 @@ def submit(sheet_file, url: str, token: str, backend: str | None, force_rerun: b
         raise click.ClickException(str(exc)) from None
     click.echo(f"submission {created['id']}: {created['progress']['total']} case runs queued")
     if created["attempt"]:
-        late = f"{created['late_seconds']} s late" if created["late_seconds"] else "on time"
-        click.echo(f"assignment {created['assignment_id']}, attempt {created['attempt']}, {late}")
+        from grader.assignments import late_text
+
+        click.echo(f"assignment {created['assignment_id']}, attempt {created['attempt']}, "
+                   f"{late_text(created['late_seconds'])}")
     if no_wait:
         return
     state = follow(client, created["id"], created["progress"]["total"])

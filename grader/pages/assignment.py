@@ -39,18 +39,6 @@ class StudentRow:
         return next((a for a in self.attempts if a.counts), None)
 
 
-def late_text(seconds: int | None) -> str:
-    """'on time', or how late in days, hours and minutes and how many days the penalty charges."""
-    if not seconds:
-        return "on time"
-    days, rest = divmod(seconds, logic.DAY_S)
-    hours, minutes = rest // 3600, rest % 3600 // 60
-    parts = [f"{days} d" if days else "", f"{hours} h" if hours else "", f"{minutes} min" if minutes or not (
-        days or hours) else ""]
-    charged = -(-seconds // logic.DAY_S)
-    return f"{' '.join(p for p in parts if p)} late ({charged} day{'s' if charged != 1 else ''} charged)"
-
-
 def students_view(session, assignment: Assignment) -> list[StudentRow]:
     """Every student of the course (and anyone else who submitted), by name, with their attempts in order."""
     counting = {c.submission.student_id: c.submission.id
@@ -67,7 +55,7 @@ def students_view(session, assignment: Assignment) -> list[StudentRow]:
         for s in attempts.get(user.id, []):
             grade = current_grade(session, s.id)
             counted = logic.counted_score(assignment, s, grade.total, grade.max_total) if grade else None
-            row.attempts.append(AttemptRow(submission=s, late=late_text(s.late_seconds), counted=counted,
+            row.attempts.append(AttemptRow(submission=s, late=logic.late_text(s.late_seconds), counted=counted,
                                            counts=counting.get(user.id) == s.id))
         rows.append(row)
     return rows

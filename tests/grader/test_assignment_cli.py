@@ -112,7 +112,7 @@ def test_a_student_submits_to_an_assignment_and_sees_the_withheld_items_pending(
     sheet.write_text(yaml.safe_dump(checkpoint_sheet()))
     done = run(api, monkeypatch, "submit", str(sheet), "--assignment", str(aid), who="alice")
     assert done.exit_code == 0, done.output
-    assert "attempt 1, 72" in done.output  # seconds late, about two hours
+    assert "assignment 1, attempt 1, 2 h late (1 day charged)" in done.output
     lines = {line.split()[0]: line for line in done.output.splitlines() if line.startswith("  C")}
     assert "pending" in lines["C3"] and "withheld: shown once assignment" in lines["C3"]
     assert "1 of 8 points pending (C3)" in done.output

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from tests.grader.test_assignments import assignment_count, at, checkpoint_sheet, create, submit
@@ -100,7 +102,7 @@ def test_submissions_past_the_hourly_limit_get_429_with_retry_after_naming_the_r
     assert third.status_code == 429, third.text
     (err,) = third.json()["errors"]
     assert err["field"] == "assignment_id" and "allows 2 submissions per hour" in err["rule"]
-    assert "the next is allowed at 20" in err["rule"]
+    assert re.search(r"the next is allowed at 20\S+T\d\d:\d\d:\d\d\+00:00$", err["rule"]), err["rule"]
     assert 3500 <= int(third.headers["Retry-After"]) <= 3600
     assert submit(api, aid, who="bob").status_code == 202  # counted per student
     from tests.grader.test_assignments import stored
@@ -122,3 +124,11 @@ def test_the_hourly_limit_is_checked_against_the_last_60_minutes(api):
         session.commit()
     assert submit(api, aid).status_code == 202
     assert submit(api, aid).status_code == 429
+
+
+def test_lateness_reads_in_days_hours_and_minutes_with_the_days_charged():
+    from grader.assignments import late_text
+
+    assert [late_text(s) for s in (0, 59, 7200, 27914, 86400, 93780)] == [
+        "on time", "59 s late (1 day charged)", "2 h late (1 day charged)", "7 h 45 min late (1 day charged)",
+        "1 d late (1 day charged)", "1 d 2 h 3 min late (2 days charged)"]
