@@ -112,7 +112,8 @@ class SubmissionPublic(BaseModel):
         "items only (null while every item is withheld)"))
     raw_score: float | None = Field(None, description="A graded attempt's score before the late penalty (null while "
                                                       "any of its items is withheld from the caller)")
-    penalty: float | None = Field(None, description="Fraction of the raw score taken for lateness")
+    penalty: float | None = Field(None, description="Fraction of the raw score taken for lateness (a submission to "
+                                                    "an assignment)")
     counted_score: float | None = Field(None, description="The raw score less the late penalty")
     counts: bool | None = Field(None, description=(
         "Whether this is the attempt that counts for its student (latest or best, as the assignment says)"))

@@ -27,10 +27,12 @@ def submission_public(submission: Submission, session: Session, user: User | Non
     if shown is not None and len(hidden) == len(shown.get("items", [])) > 0:
         shown = None  # every item withheld: no total at all
     counted = {}
+    if submission.assignment is not None:  # the penalty follows from the lateness alone: never withheld
+        counted["penalty"] = assignments.penalty_fraction(submission.assignment, submission.late_seconds or 0)
     if grade is not None and submission.assignment is not None:
         mine, counting_id = assignments.counted_for(session=session, submission=submission)
         if mine is not None and not hidden:
-            counted = {"raw_score": mine.raw, "penalty": mine.penalty, "counted_score": mine.counted}
+            counted |= {"raw_score": mine.raw, "counted_score": mine.counted}
         if not hidden or submission.assignment.counted_attempt == "latest":  # "best" would tell a hidden score
             counted["counts"] = counting_id == submission.id
     return SubmissionPublic(

@@ -121,8 +121,23 @@ def submissions_page(request: Request, session: SessionDep, user: PageUser):
         return _sign_in_redirect(request)
     rows = crud.visible_submissions(session=session, user=user)
     grades = {s.id: g for s in rows if (g := shown_grade(session, s, user)[0]) is not None}
-    return TEMPLATES.TemplateResponse(request, "submissions.html",
-                                      {"user": user, "submissions": rows[::-1], "grades": grades})
+    return TEMPLATES.TemplateResponse(request, "submissions.html", {
+        "user": user, "submissions": rows[::-1], "grades": grades, "attempts": _attempts(session, rows, user)})
+
+
+def _attempts(session, rows: list[Submission], user) -> dict[int, dict]:
+    """Per submission to an assignment, what the caller may see of it: attempt, lateness, penalty, whether it
+    counts (grader.api.views.submission_public decides what a withheld grade leaves out)."""
+    from grader.api.views import submission_public
+    from grader.assignments import late_text
+
+    out = {}
+    for s in rows:
+        if s.assignment is not None:
+            public = submission_public(s, session, user)
+            out[s.id] = {"assignment": s.assignment, "attempt": s.attempt, "late": late_text(s.late_seconds),
+                         "penalty": public.penalty, "counted_score": public.counted_score, "counts": public.counts}
+    return out
 
 
 @router.get("/submissions/{submission_id}", response_class=HTMLResponse)
@@ -136,6 +151,7 @@ def report_page(request: Request, submission_id: int, session: SessionDep, user:
     view = report_view(submission, grade)
     return TEMPLATES.TemplateResponse(request, "report.html", {
         "user": user, "view": view, "part_titles": PART_TITLES,
+        "attempt": _attempts(session, [submission], user).get(submission.id),
         "history": [] if hidden else grade_history(session, submission.id)})
 
 

@@ -18,7 +18,7 @@ from rubric.metrics import TUMBLE_EXPLANATION, tumble_angle_deg
 FIRST_RUN_NOTE_AFTER_S = 20.0
 VERDICT_LABEL = {
     "credit": "credit", "no_credit": "no credit", "inconclusive": "inconclusive (not counted)",
-    "one_factor_violation": "config fault", "not_measured": "not measured", "pending": "pending (not shown yet)",
+    "one_factor_violation": "config fault", "not_measured": "not measured", "pending": "pending",
 }
 
 

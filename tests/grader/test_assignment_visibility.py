@@ -40,7 +40,8 @@ def test_a_withheld_item_is_hidden_everywhere_a_student_looks_then_shown_on_rele
     assert row["counts"] is True and "C2, C3" in row["pending"]
     assert api.client.get(f"/v1/submissions/{sid}/grades", headers=api.as_("alice")).status_code == 409
     page = api.client.get(f"/submissions/{sid}", headers=api.as_("alice")).text
-    assert "pending (not shown yet)" in page and "2 of 8 points pending" in page
+    assert 'verdict-pending">pending<' in page and "2 of 8 points pending" in page
+    assert "withheld: shown once assignment" in page
     results = api.client.get(f"/submissions/{sid}/results.json", headers=api.as_("alice")).json()
     assert {i["id"]: i["score"] for i in results["items"]}["C3"] is None and results["total"] == shown_total
     listing = api.client.get("/submissions", headers=api.as_("alice")).text
@@ -93,6 +94,13 @@ def test_each_submission_says_its_raw_penalty_counted_score_and_whether_it_count
     assert (second["raw_score"], second["counted_score"], second["counts"]) == (3, 2.25, False)
     listed = {s["id"]: s["counts"] for s in api.client.get("/v1/submissions", headers=api.as_("alice")).json()}
     assert listed == {first["id"]: True, second["id"]: False}
+    # The student's pages say the same: each attempt, which one counts, the lateness and the penalty taken.
+    page = api.client.get("/submissions", headers=api.as_("alice")).text
+    assert "Checkpoints, attempt 1 <span class=\"verdict verdict-credit\">counts</span>" in page
+    assert "attempt 2 <span class=\"muted\">(another attempt counts)</span>" in page
+    assert "2 h late (1 day charged) · late penalty −25%, counted 3<" in page
+    report = api.client.get(f"/submissions/{second['id']}", headers=api.as_("alice")).text
+    assert 'id="attempt">Assignment <span class="attempt">Checkpoints, attempt 2' in report and "counted 2.25" in report
 
 
 def test_submissions_past_the_hourly_limit_get_429_with_retry_after_naming_the_rule(api):

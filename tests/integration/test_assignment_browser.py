@@ -100,4 +100,19 @@ def test_the_instructor_opens_an_assignment_from_the_dashboard_and_reads_every_s
     student = signed_in(browser, api, "alice")
     student.goto(f"{api.url}/assignments/{aid}")
     assert "Week 3 checkpoints" not in student.content()
+    # Her own report: C3 pending until the release, the attempt that counts and the penalty named.
+    student.goto(f"{api.url}/submissions/{first['id']}")
+    student.wait_for_selector("#items")
+    assert "pending" in student.locator("#item-C3").inner_text()
+    assert "1 of 8 points pending (C3)" in student.inner_text("#pending")
+    line = student.inner_text("#attempt")
+    # Which attempt counts is the best score's secret until C3 is shown; the penalty follows from the lateness.
+    assert "attempt 1" in line and "counts" not in line and "late penalty −20%" in line
+    student.locator("#item-C3").scroll_into_view_if_needed()
+    student.screenshot(path=str(SHOTS / "assignment-student-report.png"))
+    prof.release(aid)
+    student.reload()
+    assert "pending" not in student.locator("#item-C3").inner_text()
+    assert student.locator("#pending").count() == 0
+    assert "counts" in student.inner_text("#attempt") and "counted 3.2" in student.inner_text("#attempt")
     student.close()
