@@ -96,7 +96,7 @@ def test_each_submission_says_its_raw_penalty_counted_score_and_whether_it_count
     assert listed == {first["id"]: True, second["id"]: False}
     # The student's pages say the same: each attempt, which one counts, the lateness and the penalty taken.
     page = api.client.get("/submissions", headers=api.as_("alice")).text
-    assert "Checkpoints, attempt 1 <span class=\"verdict verdict-credit\">counts</span>" in page
+    assert "Checkpoints, attempt 1 <span class=\"counts-badge\">counts</span>" in page
     assert "attempt 2 <span class=\"muted\">(another attempt counts)</span>" in page
     assert "2 h late (1 day charged) · late penalty −25%, counted 3<" in page
     report = api.client.get(f"/submissions/{second['id']}", headers=api.as_("alice")).text
