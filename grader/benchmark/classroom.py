@@ -33,7 +33,8 @@ def class_sheets(students: list[str]) -> list[dict]:
     for i, student in enumerate(students):
         sheet = copy.deepcopy(base) | {"student": student}
         table = sheet["configs"]["table_exercise"]
-        table["table"]["friction"] = TABLE_FRICTIONS[i % len(TABLE_FRICTIONS)]
+        # Shifted by one each round of 20, so the two-factor sheets do not always take the same two frictions.
+        table["table"]["friction"] = TABLE_FRICTIONS[(i + i // len(TABLE_FRICTIONS)) % len(TABLE_FRICTIONS)]
         table["name"] = f"table-{table['table']['friction']:.2f}"
         if i % TWO_FACTOR_EVERY == TWO_FACTOR_EVERY - 1:
             table["table"]["pos"] = [0.8, 0.0, 0.75]
