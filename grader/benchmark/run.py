@@ -21,6 +21,7 @@ class BenchOptions:
     api_clients: int
     api_requests: int
     api_stacks: list[str]
+    api_think_s: tuple[float, ...]
     out_dir: Path
     quick: bool = False
 
@@ -32,6 +33,13 @@ def _graded_submission(stack) -> tuple[int, str]:
     who = stack.students[0]
     _, state = time_submission(stack.client(who), reference_sheet())
     return state["id"], who
+
+
+def _api(stack, o: BenchOptions, bench_api, log) -> list[dict]:
+    """One load per think time, on one graded submission."""
+    submission_id, who = _graded_submission(stack)
+    return [bench_api(stack, submission_id, who, o.api_clients, o.api_requests, think_s=think, log=log)
+            for think in o.api_think_s]
 
 
 def run_bench(o: BenchOptions, *, save: Callable[[str, object], None], log: Callable[[str], None]) -> list[str]:
@@ -60,7 +68,7 @@ def run_bench(o: BenchOptions, *, save: Callable[[str, object], None], log: Call
                 out += [*tables.format_submission(figures), ""]
             if "api" in o.parts and "embedded" in o.api_stacks:
                 log(f"== API latency, {o.api_clients} clients (embedded)")
-                api_rows.append(bench_api(stack, *_graded_submission(stack), o.api_clients, o.api_requests, log=log))
+                api_rows += _api(stack, o, bench_api, log)
                 save("api", api_rows)
             if "memory" in o.parts:
                 log(f"== worker memory over {o.memory_cases} cases (embedded)")
@@ -70,7 +78,7 @@ def run_bench(o: BenchOptions, *, save: Callable[[str, object], None], log: Call
     for kind in (k for k in o.api_stacks if k != "embedded" and "api" in o.parts):
         with service_stack(kind, services, students=1) as stack:
             log(f"== API latency, {o.api_clients} clients ({kind})")
-            api_rows.append(bench_api(stack, *_graded_submission(stack), o.api_clients, o.api_requests, log=log))
+            api_rows += _api(stack, o, bench_api, log)
             save("api", api_rows)
     if api_rows:
         out += [*tables.format_api(api_rows), ""]

@@ -69,11 +69,13 @@ def format_memory(f: dict) -> list[str]:
 
 def format_api(rows: list[dict]) -> list[str]:
     lines = ["API latency reading a submission and its report page (ms, 200s only):",
-             f"  {'stack':10s} {'clients':>7s} {'requests':>8s} {'p50':>7s} {'p95':>7s} {'p99':>7s} {'max':>7s} "
+             f"  {'stack':10s} {'clients':>7s} {'think':>5s} {'requests':>8s} {'p50':>7s} {'p95':>7s} {'p99':>7s} "
+             f"{'max':>7s} "
              f"{'errors':>6s} {'req/s':>6s}  target (p95 <= 50 ms at 50 clients)"]
     for f in rows:
         partial = "" if f["clients"] >= API_TARGET_CLIENTS else f"{f['clients']} of {API_TARGET_CLIENTS} clients"
-        lines.append(f"  {f['stack']:10s} {f['clients']:7d} {f['requests']:8d} {f['p50_ms']:7.1f} "
+        lines.append(f"  {f['stack']:10s} {f['clients']:7d} {f.get('think_s', 0):4g}s {f['requests']:8d} "
+                     f"{f['p50_ms']:7.1f} "
                      f"{f['p95_ms']:7.1f} {f['p99_ms']:7.1f} {f['max_ms']:7.1f} {f['errors']:6d} "
                      f"{f['requests_per_s']:6.0f}  {verdict('api_p95_ms', f['p95_ms'], partial=partial)}")
         for path, s in f["by_path"].items():

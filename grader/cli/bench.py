@@ -36,15 +36,18 @@ def _parts(value: str) -> tuple[str, ...]:
 @click.option("--memory-cases", type=click.IntRange(1, 5000), default=None, help="Cases sampled for memory.")
 @click.option("--api-clients", type=click.IntRange(1, 500), default=50, show_default=True)
 @click.option("--api-stacks", default="embedded", show_default=True, help="Stacks the API load runs on.")
+@click.option("--api-think", default="0,1", show_default=True,
+              help="Seconds each reader pauses between reads, one load per value (0: back to back).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("out/bench"),
               show_default=True, help="Case folders and service data.")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Where the figures go (default OUT/bench.json).")
 def bench(quick: bool, only: str, cases: str | None, repeats: int | None, class_size: int | None, class_stacks: str,
-          memory_cases: int | None, api_clients: int, api_stacks: str, out_dir: Path, json_path: Path | None) -> None:
+          memory_cases: int | None, api_clients: int, api_stacks: str, api_think: str, out_dir: Path,
+          json_path: Path | None) -> None:
     """Measure, print a table per part with the targets met or missed, and write the figures as JSON."""
-    from grader.benchmark.run import BenchOptions, run_bench
     from grader.benchmark.cases import BenchFailure
+    from grader.benchmark.run import BenchOptions, run_bench
     from grader.benchmark.stack import ServiceUnavailable
 
     size = QUICK if quick else FULL
@@ -52,10 +55,12 @@ def bench(quick: bool, only: str, cases: str | None, repeats: int | None, class_
         parts=_parts(only), cases=[c.strip() for c in (cases or size["cases"]).split(",")],
         repeats=repeats or size["repeats"], class_size=class_size or size["class_size"],
         class_stacks=[s.strip() for s in class_stacks.split(",")], memory_cases=memory_cases or size["memory_cases"],
-        api_clients=api_clients, api_requests=size["api_requests"], api_stacks=[s.strip() for s in api_stacks.split(",")],
+        api_clients=api_clients, api_requests=size["api_requests"],
+        api_stacks=[s.strip() for s in api_stacks.split(",")],
+        api_think_s=tuple(float(t) for t in api_think.split(",")),
         out_dir=out_dir, quick=quick)
     json_path = json_path or out_dir / "bench.json"
-    report = {"command": "grader bench " + " ".join(sys.argv[1:]), "quick": quick,
+    report = {"command": " ".join(["grader", *sys.argv[1:]]), "quick": quick,
               "started_utc": datetime.now(UTC).isoformat(timespec="seconds"), "host": platform.node(),
               "cpus": os.cpu_count()}
 
