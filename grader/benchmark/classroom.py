@@ -82,6 +82,8 @@ def bench_class(stack, size: int, log: Callable[[str], None] = print) -> dict:
         graded, failed, last = _finished(stack.engine)
         if graded + failed >= size:
             break
+        if stack.worker.poll() is not None:
+            raise BenchFailure(f"class of {size}: the worker exited ({stack.worker.returncode}) with {graded} graded")
         if time.monotonic() > deadline:
             raise BenchFailure(f"class of {size}: {graded} graded, {failed} failed when the wait limit passed")
         log(f"  {graded} graded, {failed} failed ({time.monotonic() - started:.0f} s)")

@@ -31,11 +31,11 @@ def bench_memory(stack, cases: int, log: Callable[[str], None] = print) -> dict:
     the cases add, not the process start-up."""
     client = stack.client(stack.students[0])
     sheet = reference_sheet()
-    time_submission(client, sheet, force_rerun=True)
+    time_submission(client, sheet, worker=stack.worker, force_rerun=True)
     samples = [{"cases": 0, "rss_mb": worker_rss(stack.worker.pid)}]
     done = 0
     while done < cases:
-        _, state = time_submission(client, sheet, force_rerun=True)
+        _, state = time_submission(client, sheet, worker=stack.worker, force_rerun=True)
         done += state["progress"]["total"]
         samples.append({"cases": done, "rss_mb": worker_rss(stack.worker.pid)})
         total = sum(samples[-1]["rss_mb"].values())

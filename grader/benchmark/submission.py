@@ -26,10 +26,12 @@ def _utcnow() -> datetime:
     return datetime.now(UTC).replace(tzinfo=None)
 
 
-def wait_graded(client, submission_id: int, *, poll_s: float = 0.1) -> dict:
-    """Poll until graded; raise BenchFailure on failed or past WAIT_LIMIT_S."""
+def wait_graded(client, submission_id: int, *, poll_s: float = 0.1, worker=None) -> dict:
+    """Poll until graded; raise BenchFailure on failed, past WAIT_LIMIT_S, or when `worker` (a Popen) exited."""
     deadline = time.monotonic() + WAIT_LIMIT_S
     while True:
+        if worker is not None and worker.poll() is not None:
+            raise BenchFailure(f"the worker exited ({worker.returncode}) with submission {submission_id} unfinished")
         state = client.submission(submission_id)
         if state["status"] == "graded":
             return state
@@ -48,11 +50,11 @@ def graded_after(state: dict, posted_at: datetime) -> float:
     return (graded_at - posted_at).total_seconds()
 
 
-def time_submission(client, sheet: dict, **options) -> tuple[float, dict]:
+def time_submission(client, sheet: dict, *, worker=None, **options) -> tuple[float, dict]:
     """POST the sheet, wait for its grade; (seconds from POST to stored grade, final state)."""
     posted_at = _utcnow()
     created = client.submit(sheet, **options)
-    state = wait_graded(client, created["id"])
+    state = wait_graded(client, created["id"], worker=worker)
     return graded_after(state, posted_at), state
 
 
@@ -60,14 +62,14 @@ def bench_submission(stack, repeats: int, log: Callable[[str], None] = print) ->
     """First, cold and reused submissions of examples/l03/reference.yaml on one stack, cold and reused interleaved."""
     client = stack.client(stack.students[0])
     sheet = reference_sheet()
-    first_s, state = time_submission(client, sheet)
+    first_s, state = time_submission(client, sheet, worker=stack.worker)
     log(f"  submission on a just-started worker: {first_s:.2f} s ({state['progress']['total']} case runs)")
     cold, reused = [], []
     for r in range(repeats):
-        seconds, _ = time_submission(client, sheet, force_rerun=True)
+        seconds, _ = time_submission(client, sheet, worker=stack.worker, force_rerun=True)
         cold.append(seconds)
         log(f"  repeat {r + 1}/{repeats} cold {seconds:.2f} s")
-        seconds, state = time_submission(client, sheet)
+        seconds, state = time_submission(client, sheet, worker=stack.worker)
         runs = client.case_runs(state["id"])
         if not all(run["reused_from_id"] for run in runs):
             raise BenchFailure(f"submission {state['id']}: expected every case run reused")
