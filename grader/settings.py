@@ -37,6 +37,14 @@ class Settings(BaseSettings):
     # substeps, bodies) instead of building anew; only friction and per-case loop settings change. On because
     # tests/worker/test_scene_reuse.py proves the arrays equal, sample for sample, to a fresh scene's.
     scene_reuse: bool = True
+    # The API runs sync handlers and dependencies on this many threads (anyio's default is 40) and admits this many
+    # requests at once; the rest wait unserved, holding no thread and no connection. Each engine's pool keeps as many
+    # connections, so an admitted request never waits on the pool while holding a connection that a request waiting
+    # for a thread needs: with SQLAlchemy's default pool (5 + 10) that deadlock showed as 30 s timeouts at 50 clients.
+    api_threads: int = Field(40, ge=1, le=1000)
+    # Connections beyond api_threads, for the rest of a process (the embedded reconciler thread, a worker's tasks).
+    # A PostgreSQL server needs max_connections >= (api_threads + db_pool_overflow) per API process + the workers'.
+    db_pool_overflow: int = Field(10, ge=0, le=1000)
     max_body_bytes: int = Field(1_000_000, gt=0)
     # A sheet is about 6 levels deep; deeper JSON is refused before anything walks it.
     max_json_depth: int = Field(32, ge=4, le=200)

@@ -6,6 +6,7 @@ What may change between versions, and how a regrade is previewed, is rubric.gove
 from __future__ import annotations
 
 import datetime as dt
+import functools
 import hashlib
 import json
 import re
@@ -131,6 +132,13 @@ def rubric_versions(lesson: str = "L03") -> list[str]:
     return sorted(found, key=version_key)
 
 
+@functools.lru_cache(maxsize=16)
+def _parsed(text: str) -> Rubric:
+    """A rubric file's text parsed once per process: the service records the shipped files before every grade
+    (grader.core.rubrics.sync_shipped), and parsing two with PyYAML's pure-Python loader took ~0.1 s of each."""
+    return parse_rubric(yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader)))
+
+
 def load_rubric(lesson: str = "L03", version: str | None = None) -> Rubric:
     """The rubric of a lesson at `version`, or its latest version; the file's own lesson/version must agree."""
     versions = rubric_versions(lesson)
@@ -139,7 +147,7 @@ def load_rubric(lesson: str = "L03", version: str | None = None) -> Rubric:
     version = version or versions[-1]
     if version not in versions:
         raise LookupError(f"lesson {lesson} has no rubric version {version!r}; known: {', '.join(versions)}")
-    rubric = parse_rubric(yaml.safe_load((LESSONS_DIR / f"{lesson}-v{version}.yaml").read_text()))
+    rubric = _parsed((LESSONS_DIR / f"{lesson}-v{version}.yaml").read_text()).model_copy(deep=True)
     if (rubric.lesson, rubric.version) != (lesson, version):
         raise ValueError(f"{lesson}-v{version}.yaml declares lesson {rubric.lesson} version {rubric.version}")
     return rubric

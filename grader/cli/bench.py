@@ -1,26 +1,79 @@
-"""`grader bench`: wall time per case, isolated vs warm, measured side by side in one run (medians and ratios)."""
+"""`grader bench`: cases by execution path, one submission, a class, worker memory and API latency, measured side by
+side in one run (medians and ratios), printed with the issue-12 targets and written as JSON."""
 
 from __future__ import annotations
 
+import json
+import os
+import platform
+import sys
+from datetime import UTC, datetime
 from pathlib import Path
 
 import click
 
-from grader.benchmark.cases import BenchFailure, bench_cases, format_cases
+PARTS = ("cases", "submission", "class", "memory", "api")
+# --quick: the same measurements, smaller, in a few minutes.
+FULL = {"cases": "N1,N2,N3,N4,N5", "repeats": 3, "class_size": 200, "memory_cases": 500, "api_requests": 20}
+QUICK = {"cases": "N1,N3,N5", "repeats": 2, "class_size": 20, "memory_cases": 50, "api_requests": 10}
+
+
+def _parts(value: str) -> tuple[str, ...]:
+    parts = tuple(p.strip() for p in value.split(",") if p.strip())
+    unknown = [p for p in parts if p not in PARTS]
+    if unknown:
+        raise click.BadParameter(f"unknown part {', '.join(unknown)}; choose from {', '.join(PARTS)}")
+    return parts
 
 
 @click.command()
-@click.option("--cases", default="N1,N2,N3,N4,N5", show_default=True, help="Comma-separated case names.")
-@click.option("--repeats", type=click.IntRange(1, 20), default=3, show_default=True)
+@click.option("--quick", is_flag=True, help="Smaller everything, a few minutes: " + json.dumps(QUICK))
+@click.option("--only", default=",".join(PARTS), show_default=True, help="Comma-separated parts to run.")
+@click.option("--cases", default=None, help=f"Comma-separated case names (default {FULL['cases']}).")
+@click.option("--repeats", type=click.IntRange(1, 20), default=None, help="Repeats per case and per submission.")
+@click.option("--class-size", type=click.IntRange(1, 1000), default=None, help="Submissions in the class.")
+@click.option("--class-stacks", default="embedded,redis-pg", show_default=True)
+@click.option("--memory-cases", type=click.IntRange(1, 5000), default=None, help="Cases sampled for memory.")
+@click.option("--api-clients", type=click.IntRange(1, 500), default=50, show_default=True)
+@click.option("--api-stacks", default="embedded", show_default=True, help="Stacks the API load runs on.")
+@click.option("--api-think", default="0,1", show_default=True,
+              help="Seconds each reader pauses between reads, one load per value (0: back to back).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("out/bench"),
-              show_default=True)
-def bench(cases: str, repeats: int, out_dir: Path) -> None:
-    """Time each case as an isolated process and in one warm case process, interleaved, and print medians and ratios."""
+              show_default=True, help="Case folders and service data.")
+@click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Where the figures go (default OUT/bench.json).")
+def bench(quick: bool, only: str, cases: str | None, repeats: int | None, class_size: int | None, class_stacks: str,
+          memory_cases: int | None, api_clients: int, api_stacks: str, api_think: str, out_dir: Path,
+          json_path: Path | None) -> None:
+    """Measure, print a table per part with the targets met or missed, and write the figures as JSON."""
+    from grader.benchmark.cases import BenchFailure
+    from grader.benchmark.run import BenchOptions, run_bench
+    from grader.benchmark.stack import ServiceUnavailable
+
+    size = QUICK if quick else FULL
+    options = BenchOptions(
+        parts=_parts(only), cases=[c.strip() for c in (cases or size["cases"]).split(",")],
+        repeats=repeats or size["repeats"], class_size=class_size or size["class_size"],
+        class_stacks=[s.strip() for s in class_stacks.split(",")], memory_cases=memory_cases or size["memory_cases"],
+        api_clients=api_clients, api_requests=size["api_requests"],
+        api_stacks=[s.strip() for s in api_stacks.split(",")],
+        api_think_s=tuple(float(t) for t in api_think.split(",")),
+        out_dir=out_dir, quick=quick)
+    json_path = json_path or out_dir / "bench.json"
+    report = {"command": " ".join(["grader", *sys.argv[1:]]), "quick": quick,
+              "started_utc": datetime.now(UTC).isoformat(timespec="seconds"), "host": platform.node(),
+              "cpus": os.cpu_count()}
+
+    def save(part: str, figures) -> None:
+        report[part] = figures
+        json_path.parent.mkdir(parents=True, exist_ok=True)
+        json_path.write_text(json.dumps(report, indent=2, default=str))
+
     try:
-        figures = bench_cases([name.strip() for name in cases.split(",")], repeats, out_dir,
-                              log=lambda line: click.echo(line, err=True))
-    except BenchFailure as exc:
-        raise click.ClickException(str(exc)) from exc
+        tables = run_bench(options, save=save, log=lambda line: click.echo(line, err=True))
+    except (BenchFailure, ServiceUnavailable) as exc:
+        raise click.ClickException(f"{exc} (figures so far in {json_path})") from exc
     click.echo("")
-    for line in format_cases(figures):
+    for line in tables:
         click.echo(line)
+    click.echo(f"\nfigures: {json_path}")

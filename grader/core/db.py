@@ -14,9 +14,13 @@ _engine: Engine | None = None
 
 
 def make_engine(url: str) -> Engine:
+    """An engine whose pool holds a connection for every request the API admits (settings.api_threads) plus
+    db_pool_overflow; connections open only when used, so a worker or the CLI holds few."""
+    pool = {"pool_size": settings.api_threads, "max_overflow": settings.db_pool_overflow}
     if url.startswith("sqlite"):
         Path(url.split("///", 1)[1]).parent.mkdir(parents=True, exist_ok=True)
-        engine = create_engine(url, connect_args={"timeout": 30, "check_same_thread": False})
+        # A file database pools like a server's (QueuePool): SQLite connections are cheap, WAL serves readers at once.
+        engine = create_engine(url, connect_args={"timeout": 30, "check_same_thread": False}, **pool)
 
         @event.listens_for(engine, "connect")
         def _sqlite_pragmas(dbapi_connection, _record):
@@ -27,7 +31,7 @@ def make_engine(url: str) -> Engine:
             cursor.close()
 
         return engine
-    return create_engine(url, pool_pre_ping=True)
+    return create_engine(url, pool_pre_ping=True, **pool)
 
 
 def get_engine() -> Engine:

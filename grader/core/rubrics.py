@@ -74,6 +74,13 @@ def get_version(session: Session, lesson: str, version: str):
     return _row_rubric(row)
 
 
+def stored_version(session: Session, lesson: str, version: str):
+    """The Rubric stored for `lesson` at `version`, or None; reads only (no shipped file is parsed or recorded), for
+    the pages: a grade's version was stored when the grade was."""
+    row = session.scalar(select(RubricVersion).where(RubricVersion.lesson == lesson, RubricVersion.version == version))
+    return None if row is None else _row_rubric(row)
+
+
 def publish(session: Session, *, content: dict, user: User) -> RubricVersion:
     """Record a new rubric version published by `user` (flushes). Raises pydantic's ValidationError for a malformed
     rubric and rubric.governance.RubricGovernanceError for one governance refuses (a used version changed, a

@@ -179,13 +179,15 @@ def _tolerance_rows(names: dict[str, str], rubric) -> list[dict]:
 
 
 def _rubric(grade: Grade):
-    """The grade's rubric version as the service stored it (shipped or published by an instructor)."""
-    from grader.core.db import new_session
-    from grader.core.rubrics import get_version
+    """The grade's rubric version as the service stored it (shipped or published by an instructor). Read in the
+    request's own session (a second one would hold a second pooled connection per request, and 50 readers at once
+    exhausted the pool) and without parsing the shipped files on every page view."""
+    from sqlalchemy.orm import object_session
+
+    from grader.core.rubrics import stored_version
 
     try:
-        with new_session() as session:
-            return get_version(session, grade.rubric_lesson, grade.rubric_version)
+        return stored_version(object_session(grade), grade.rubric_lesson, grade.rubric_version)
     except Exception:  # a grade stays readable even if its rubric is unreadable: tolerances then show bare values
         return None
 

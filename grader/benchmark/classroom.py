@@ -1,0 +1,95 @@
+"""A class at the deadline: many students submit at once, sharing the baseline cases, with a bounded set of
+distinct modified configs and some configs that break the one-factor rule; timed from the first POST to the last
+stored grade on one CPU worker."""
+
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import Callable
+from datetime import UTC, datetime
+
+from sqlalchemy import func, select
+from sqlalchemy.orm import Session
+
+from grader.benchmark.cases import BenchFailure
+from grader.benchmark.submission import WAIT_LIMIT_S, reference_sheet
+
+# 20 table frictions (the lesson's 0.50 left out) and 20 extensions (dt, substeps) over the lesson's 1.5 s: 40
+# distinct modified configs, each a one-factor change of its baseline.
+TABLE_FRICTIONS = (0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.55, 0.6, 0.65, 0.7, 0.75, 0.85, 0.9, 0.95,
+                   1.0, 1.1, 1.2)
+EXTENSIONS = tuple((dt, substeps) for dt, options in ((0.01, (3, 4, 5, 6)), (0.02, (3, 4, 5, 6)),
+                                                      (0.015, (1, 2, 3, 4)), (0.025, (1, 2, 3, 4)),
+                                                      (0.03, (1, 2, 3, 4))) for substeps in options)
+TWO_FACTOR_EVERY = 10  # 10% of the class
+
+
+def class_sheets(students: list[str]) -> list[dict]:
+    """One sheet per student: the reference answers, a table friction and an extension from the pools above, and
+    every TWO_FACTOR_EVERY-th table exercise also moving the table (two factors: not run, graded as a violation)."""
+    base = reference_sheet()
+    sheets = []
+    for i, student in enumerate(students):
+        sheet = copy.deepcopy(base) | {"student": student}
+        table = sheet["configs"]["table_exercise"]
+        # Shifted by one each round of 20, so the two-factor sheets do not always take the same two frictions.
+        table["table"]["friction"] = TABLE_FRICTIONS[(i + i // len(TABLE_FRICTIONS)) % len(TABLE_FRICTIONS)]
+        table["name"] = f"table-{table['table']['friction']:.2f}"
+        if i % TWO_FACTOR_EVERY == TWO_FACTOR_EVERY - 1:
+            table["table"]["pos"] = [0.8, 0.0, 0.75]
+        dt, substeps = EXTENSIONS[(i * 7) % len(EXTENSIONS)]
+        sheet["configs"]["extension"] |= {"name": f"X-{dt}-{substeps}", "dt": dt, "substeps": substeps}
+        sheets.append(sheet)
+    return sheets
+
+
+def distinct_configs(sheets: list[dict]) -> int:
+    """How many distinct modified configs (one-factor ones) the sheets carry."""
+    import json
+
+    seen = set()
+    for sheet in sheets:
+        table = sheet["configs"]["table_exercise"]["table"]
+        if table["pos"] == [0.8, 0.0, 0.7]:
+            seen.add(("table", table["friction"]))
+        extension = sheet["configs"]["extension"]
+        seen.add(("extension", json.dumps([extension["dt"], extension["substeps"]])))
+    return len(seen)
+
+
+def _finished(engine) -> tuple[int, int, datetime | None]:
+    from grader.models import Submission
+
+    with Session(engine) as session:
+        rows = dict(session.execute(select(Submission.status, func.count()).group_by(Submission.status)).all())
+        last = session.scalar(select(func.max(Submission.graded_at)))
+    return rows.get("graded", 0), rows.get("failed", 0), last
+
+
+def bench_class(stack, size: int, log: Callable[[str], None] = print) -> dict:
+    """Every student of the stack's course (size of them) submits once, back to back; wait for every grade."""
+    sheets = class_sheets(stack.students[:size])
+    started_at = datetime.now(UTC).replace(tzinfo=None)
+    started = time.monotonic()
+    for i, sheet in enumerate(sheets):
+        stack.client(sheet["student"]).submit(sheet)
+        if (i + 1) % 20 == 0:
+            log(f"  posted {i + 1}/{size} ({time.monotonic() - started:.1f} s)")
+    posted_s = time.monotonic() - started
+    deadline = started + WAIT_LIMIT_S * max(1, size // 20)
+    while True:
+        graded, failed, last = _finished(stack.engine)
+        if graded + failed >= size:
+            break
+        if stack.worker.poll() is not None:
+            raise BenchFailure(f"class of {size}: the worker exited ({stack.worker.returncode}) with {graded} graded")
+        if time.monotonic() > deadline:
+            raise BenchFailure(f"class of {size}: {graded} graded, {failed} failed when the wait limit passed")
+        log(f"  {graded} graded, {failed} failed ({time.monotonic() - started:.0f} s)")
+        time.sleep(5 if size > 50 else 2)
+    total_s = (last - started_at).total_seconds()
+    two_factor = sum(1 for i in range(size) if i % TWO_FACTOR_EVERY == TWO_FACTOR_EVERY - 1)
+    return {"stack": stack.kind, "submissions": size, "graded": graded, "failed": failed,
+            "distinct_configs": distinct_configs(sheets), "two_factor": two_factor, "posting_s": posted_s,
+            "total_s": total_s, "per_submission_s": total_s / size}

@@ -1,0 +1,88 @@
+"""Real service processes on loopback: a free port, the API (uvicorn), a Celery worker, waiting for them, stopping
+them. Shared by the benchmark and the integration tests (tests/services.py re-exports these)."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+import uuid
+from collections.abc import Callable
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent.parent
+# Safety stop for waits on real processes; never a claim about speed.
+STARTUP_LIMIT_S = 120
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_for(predicate: Callable[[], bool], what: str, proc: subprocess.Popen, log: Path,
+             limit_s: float = STARTUP_LIMIT_S) -> None:
+    """Poll predicate until true; raise with the log's tail if proc exits first or limit_s passes."""
+    deadline = time.monotonic() + limit_s
+    while not predicate():
+        if proc.poll() is not None:
+            raise RuntimeError(f"{what} exited with {proc.returncode}:\n{log.read_text(errors='replace')[-3000:]}")
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"{what} did not start:\n{log.read_text(errors='replace')[-3000:]}")
+        time.sleep(0.2)
+
+
+def start_worker(env: dict, queues: str, log: Path) -> subprocess.Popen:
+    """A real Celery worker process (prefork, one slot), returned once it says it is ready."""
+    from worker.celery_app import worker_argv
+
+    command = worker_argv(queues.split(","), name=f"{queues.replace(',', '-')}-{uuid.uuid4().hex[:6]}@%h",
+                          heartbeat=False)
+    proc = subprocess.Popen(command, cwd=ROOT, env=env, stdout=log.open("ab"), stderr=subprocess.STDOUT,
+                            start_new_session=True)
+    wait_for(lambda: " ready." in log.read_text(errors="replace"), "celery worker", proc, log)
+    return proc
+
+
+def start_api(env: dict, port: int, log: Path) -> subprocess.Popen:
+    """The API under uvicorn on 127.0.0.1:port, returned once /v1/health answers 200."""
+    import httpx
+
+    proc = subprocess.Popen([sys.executable, "-m", "uvicorn", "grader.main:app", "--host", "127.0.0.1",
+                             "--port", str(port), "--log-level", "warning"], cwd=ROOT, env=env,
+                            stdout=log.open("ab"), stderr=subprocess.STDOUT, start_new_session=True)
+
+    def healthy() -> bool:
+        try:
+            return httpx.get(f"http://127.0.0.1:{port}/v1/health", timeout=1).status_code == 200
+        except httpx.HTTPError:
+            return False
+
+    wait_for(healthy, "API", proc, log)
+    return proc
+
+
+def stop(proc: subprocess.Popen) -> None:
+    """Stop a process group this session started (SIGTERM, then SIGKILL)."""
+    if proc.poll() is not None:
+        return
+    os.killpg(proc.pid, signal.SIGTERM)
+    try:
+        proc.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+
+
+def children(pid: int) -> list[int]:
+    """Direct child pids of pid (Linux /proc)."""
+    out = []
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        with contextlib.suppress(OSError):
+            out += [int(c) for c in (task / "children").read_text().split()]
+    return out

@@ -1,0 +1,95 @@
+"""Runs the chosen parts of `grader bench` in order, saving each part's figures as soon as it has them, and
+returns the printed tables."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from grader.benchmark import tables
+
+
+@dataclass
+class BenchOptions:
+    parts: tuple[str, ...]
+    cases: list[str]
+    repeats: int
+    class_size: int
+    class_stacks: list[str]
+    memory_cases: int
+    api_clients: int
+    api_requests: int
+    api_stacks: list[str]
+    api_think_s: tuple[float, ...]
+    out_dir: Path
+    quick: bool = False
+
+
+def _graded_submission(stack) -> tuple[int, str]:
+    """A graded submission to read (the reference sheet), and who may read it."""
+    from grader.benchmark.submission import reference_sheet, time_submission
+
+    who = stack.students[0]
+    _, state = time_submission(stack.client(who), reference_sheet(), worker=stack.worker)
+    return state["id"], who
+
+
+def _api(stack, o: BenchOptions, bench_api, log) -> list[dict]:
+    """One load per think time, on one graded submission."""
+    submission_id, who = _graded_submission(stack)
+    return [bench_api(stack, submission_id, who, o.api_clients, o.api_requests, think_s=think, log=log)
+            for think in o.api_think_s]
+
+
+def run_bench(o: BenchOptions, *, save: Callable[[str, object], None], log: Callable[[str], None]) -> list[str]:
+    from grader.benchmark.cases import bench_cases, format_cases
+    from grader.benchmark.classroom import bench_class
+    from grader.benchmark.load import bench_api
+    from grader.benchmark.memory import bench_memory
+    from grader.benchmark.stack import service_stack
+    from grader.benchmark.submission import bench_submission
+
+    out: list[str] = []
+    services = o.out_dir / "services"
+    if "cases" in o.parts:
+        log("== cases: isolated, warm, reused, stepping")
+        figures = bench_cases(o.cases, o.repeats, o.out_dir / "cases", log=log)
+        save("cases", figures)
+        out += [*format_cases(figures), *tables.format_case_targets(figures), ""]
+    api_rows: list[dict] = []
+    # One submission, API latency and memory share a stack: each measures from its own start.
+    if {"submission", "memory"} & set(o.parts) or ("api" in o.parts and "embedded" in o.api_stacks):
+        with service_stack("embedded", services, students=1) as stack:
+            if "submission" in o.parts:
+                log("== one submission (embedded)")
+                figures = bench_submission(stack, o.repeats, log=log)
+                save("submission", figures)
+                out += [*tables.format_submission(figures), ""]
+            if "api" in o.parts and "embedded" in o.api_stacks:
+                log(f"== API latency, {o.api_clients} clients (embedded)")
+                api_rows += _api(stack, o, bench_api, log)
+                save("api", api_rows)
+            if "memory" in o.parts:
+                log(f"== worker memory over {o.memory_cases} cases (embedded)")
+                figures = bench_memory(stack, o.memory_cases, log=log)
+                save("memory", figures)
+                out += [*tables.format_memory(figures), ""]
+    for kind in (k for k in o.api_stacks if k != "embedded" and "api" in o.parts):
+        with service_stack(kind, services, students=1) as stack:
+            log(f"== API latency, {o.api_clients} clients ({kind})")
+            api_rows += _api(stack, o, bench_api, log)
+            save("api", api_rows)
+    if api_rows:
+        out += [*tables.format_api(api_rows), ""]
+    if "class" in o.parts:
+        rows = []
+        for kind in o.class_stacks:
+            log(f"== a class of {o.class_size} ({kind})")
+            with service_stack(kind, services, students=o.class_size) as stack:
+                rows.append(bench_class(stack, o.class_size, log=log))
+            save("class", rows)
+        out += [*tables.format_class(rows), ""]
+    if out and out[-1] == "":
+        out.pop()
+    return out + ["machine: shared (other jobs may run on the same cores); compare figures within this run only"]

@@ -1,0 +1,94 @@
+"""The printed tables of `grader bench`, each service figure beside its issue-12 target with a verdict."""
+
+from __future__ import annotations
+
+import math
+
+CLASS_TARGET_SIZE = 200
+MEMORY_TARGET_CASES = 500
+API_TARGET_CLIENTS = 50
+# (figure, limit, unit): each is "at most"; from issue 12, "Targets".
+TARGETS = {
+    "reused_over_stepping": (1.5, "x"),
+    "submission_cold_s": (5.0, "s"),
+    "submission_reused_s": (0.5, "s"),
+    "class_s": (90.0, "s"),
+    "memory_max_mb": (1536.0, "MB"),
+    "memory_growth_pct": (5.0, "%"),
+    "api_p95_ms": (50.0, "ms"),
+}
+
+
+def verdict(name: str, value: float, *, partial: str = "") -> str:
+    """'met' or 'MISSED by <excess> (<ratio>x)'; a partial run (smaller than the target's size) says so."""
+    limit, unit = TARGETS[name]
+    if value is None or math.isnan(value):
+        return "no figure"
+    suffix = f" ({partial})" if partial else ""
+    if value <= limit:
+        return f"met (<= {limit:g} {unit}){suffix}"
+    return f"MISSED by {value - limit:.3g} {unit} ({value / limit:.1f}x the {limit:g} {unit}){suffix}"
+
+
+def format_submission(f: dict) -> list[str]:
+    return [f"one L03 submission ({f['case_runs']} case runs), POST to stored grade, {f['stack']}, "
+            f"median of {f['repeats']}:",
+            f"  first on a just-started worker {f['first_s']:8.2f} s",
+            f"  cold (force_rerun)             {f['cold_s']:8.2f} s   {verdict('submission_cold_s', f['cold_s'])}",
+            f"  fully reused                   {f['reused_s']:8.2f} s   "
+            f"{verdict('submission_reused_s', f['reused_s'])}",
+            f"  cold / reused                  {f['cold_s'] / f['reused_s']:8.1f} x"]
+
+
+def format_class(rows: list[dict]) -> list[str]:
+    lines = ["a class on one CPU worker (first POST to last stored grade):",
+             f"  {'stack':10s} {'subs':>5s} {'graded':>6s} {'failed':>6s} {'configs':>7s} {'2-factor':>8s} "
+             f"{'posting':>8s} {'total':>8s} {'per sub':>8s}  target (200 in 90 s)"]
+    for f in rows:
+        projected = f["per_submission_s"] * CLASS_TARGET_SIZE
+        partial = "" if f["submissions"] >= CLASS_TARGET_SIZE else \
+            f"projected to 200: {projected:.0f} s from {f['submissions']}"
+        lines.append(f"  {f['stack']:10s} {f['submissions']:5d} {f['graded']:6d} {f['failed']:6d} "
+                     f"{f['distinct_configs']:7d} {f['two_factor']:8d} {f['posting_s']:7.1f}s {f['total_s']:7.1f}s "
+                     f"{f['per_submission_s']:7.2f}s  {verdict('class_s', projected, partial=partial)}")
+    if len(rows) == 2:
+        lines.append(f"  {rows[0]['stack']} / {rows[1]['stack']}: {rows[0]['total_s'] / rows[1]['total_s']:.2f}x")
+    return lines
+
+
+def format_memory(f: dict) -> list[str]:
+    partial = "" if f["cases"] >= MEMORY_TARGET_CASES else f"{f['cases']} of {MEMORY_TARGET_CASES} cases"
+    lines = [f"worker resident memory (RSS of the worker and every process under it), {f['stack']}:",
+             f"  after warm-up {f['first_mb']:7.0f} MB, after {f['cases']} cases {f['last_mb']:7.0f} MB, "
+             f"max {f['max_mb']:7.0f} MB",
+             f"  max    {verdict('memory_max_mb', f['max_mb'], partial=partial)}",
+             f"  growth {f['growth_pct']:+.1f}%  {verdict('memory_growth_pct', f['growth_pct'], partial=partial)}"]
+    lines += [f"    {name:32s} {mb:7.0f} MB" for name, mb in f["last_by_process_mb"].items()]
+    return lines
+
+
+def format_api(rows: list[dict]) -> list[str]:
+    lines = ["API latency reading a submission and its report page (ms, 200s only):",
+             f"  {'stack':10s} {'clients':>7s} {'think':>5s} {'requests':>8s} {'p50':>7s} {'p95':>7s} {'p99':>7s} "
+             f"{'max':>7s} "
+             f"{'errors':>6s} {'req/s':>6s}  target (p95 <= 50 ms at 50 clients)"]
+    for f in rows:
+        partial = "" if f["clients"] >= API_TARGET_CLIENTS else f"{f['clients']} of {API_TARGET_CLIENTS} clients"
+        lines.append(f"  {f['stack']:10s} {f['clients']:7d} {f.get('think_s', 0):4g}s {f['requests']:8d} "
+                     f"{f['p50_ms']:7.1f} "
+                     f"{f['p95_ms']:7.1f} {f['p99_ms']:7.1f} {f['max_ms']:7.1f} {f['errors']:6d} "
+                     f"{f['requests_per_s']:6.0f}  {verdict('api_p95_ms', f['p95_ms'], partial=partial)}")
+        for path, s in f["by_path"].items():
+            lines.append(f"    {path:28s} p50 {s['p50_ms']:7.1f} p95 {s['p95_ms']:7.1f} p99 {s['p99_ms']:7.1f}")
+    return lines
+
+
+def format_case_targets(figures: dict) -> list[str]:
+    """Per case: reused within 1.5x of stepping, and reused at least 3x faster than the warm executor (new scene)."""
+    lines = ["per-case targets (reused <= 1.5x stepping; warm/reused >= 3x):"]
+    for name, row in figures["per_case"].items():
+        faster = row["warm_over_reused"]
+        lines.append(f"  {name:20s} reused/stepping {row['reused_over_stepping']:5.2f}x "
+                     f"{verdict('reused_over_stepping', row['reused_over_stepping']):40s} "
+                     f"warm/reused {faster:4.1f}x " + ("met" if faster >= 3 else f"MISSED ({faster:.1f}x of 3x)"))
+    return lines

@@ -1,0 +1,100 @@
+"""`grader bench`: its statistics, target verdicts, tables, the class it submits and the JSON it writes (fast, from
+recorded figures), and one bounded real run."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+from click.testing import CliRunner
+
+from grader.benchmark import stats, tables
+from grader.benchmark.classroom import class_sheets, distinct_configs
+
+SUBMISSION = {"stack": "embedded", "repeats": 3, "case_runs": 9, "first_s": 90.0, "cold_s": 12.0, "reused_s": 0.4,
+              "cold_samples_s": [12.0], "reused_samples_s": [0.4]}
+CLASS = [{"stack": "embedded", "submissions": 20, "graded": 20, "failed": 0, "distinct_configs": 36,
+          "two_factor": 2, "posting_s": 3.0, "total_s": 60.0, "per_submission_s": 3.0},
+         {"stack": "redis-pg", "submissions": 20, "graded": 20, "failed": 0, "distinct_configs": 36,
+          "two_factor": 2, "posting_s": 3.0, "total_s": 40.0, "per_submission_s": 2.0}]
+MEMORY = {"stack": "embedded", "cases": 54, "first_mb": 1000.0, "last_mb": 1020.0, "max_mb": 1030.0,
+          "growth_pct": 2.0, "last_by_process_mb": {"1 celery": 100.0, "2 python": 920.0}, "samples": []}
+API = [{"stack": "embedded", "clients": 50, "requests_per_client": 20, "requests": 1000, "p50_ms": 20.0,
+        "p95_ms": 60.0, "p99_ms": 90.0, "max_ms": 120.0, "errors": 0, "error_examples": [], "requests_per_s": 300.0,
+        "by_path": {"/v1/submissions/{id}": {"requests": 500, "p50_ms": 20.0, "p95_ms": 60.0, "p99_ms": 90.0,
+                                              "max_ms": 100.0}}}]
+
+
+def test_percentiles_interpolate_between_ranks_and_growth_is_relative():
+    values = [float(v) for v in range(1, 101)]
+    assert stats.percentile(values, 50) == pytest.approx(50.5)
+    assert stats.percentile(values, 95) == pytest.approx(95.05)
+    assert stats.percentile([3.0], 99) == 3.0
+    assert math.isnan(stats.percentile([], 50))
+    assert stats.growth_pct(1000, 1050) == pytest.approx(5.0)
+    summary = stats.latency_summary([0.01, 0.02, 0.03])
+    assert summary["requests"] == 3 and summary["p50_ms"] == pytest.approx(20.0) and summary["max_ms"] == 30.0
+
+
+def test_verdicts_say_met_or_by_how_much_missed_and_when_a_run_was_smaller_than_the_target():
+    assert tables.verdict("submission_reused_s", 0.4) == "met (<= 0.5 s)"
+    assert tables.verdict("submission_cold_s", 11.0) == "MISSED by 6 s (2.2x the 5 s)"
+    assert tables.verdict("class_s", 60.0, partial="20 of 200") == "met (<= 90 s) (20 of 200)"
+    assert tables.verdict("api_p95_ms", math.nan) == "no figure"
+
+
+def test_tables_print_every_figure_beside_its_target():
+    text = "\n".join([*tables.format_submission(SUBMISSION), *tables.format_class(CLASS),
+                      *tables.format_memory(MEMORY), *tables.format_api(API)])
+    assert "fully reused                       0.40 s   met (<= 0.5 s)" in text
+    assert "cold (force_rerun)                12.00 s   MISSED by 7 s (2.4x the 5 s)" in text
+    assert "projected to 200: 600 s from 20" in text and "embedded / redis-pg: 1.50x" in text
+    assert "max    met (<= 1536 MB) (54 of 500 cases)" in text and "growth +2.0%" in text
+    assert "MISSED by 10 ms (1.2x the 50 ms)" in text and "/v1/submissions/{id}" in text
+
+
+def test_the_class_shares_the_baseline_and_carries_40_distinct_configs_and_a_tenth_two_factor_sheets():
+    import rubric
+
+    sheets = class_sheets([f"s{i:03d}" for i in range(200)])
+    assert distinct_configs(sheets) == 40
+    findings = [rubric.one_factor_findings(rubric.parse_sheet(s), rubric.load_rubric()) for s in sheets[:20]]
+    broken = [i for i, f in enumerate(findings) if not all(finding.ok for finding in f.values())]
+    assert broken == [9, 19]  # every tenth sheet moves the table as well as its friction
+
+
+def test_the_json_holds_each_part_under_its_name_with_the_command(tmp_path, monkeypatch):
+    from grader.benchmark import run
+    from grader.cli.bench import bench
+
+    def fake(options, *, save, log):
+        assert options.class_size == 20 and options.memory_cases == 50 and options.api_clients == 7
+        save("submission", SUBMISSION)
+        save("api", API)
+        return tables.format_submission(SUBMISSION)
+
+    monkeypatch.setattr(run, "run_bench", fake)
+    out = tmp_path / "b.json"
+    result = CliRunner().invoke(bench, ["--quick", "--only", "submission,api", "--api-clients", "7", "--json",
+                                        str(out)])
+    assert result.exit_code == 0, result.output
+    figures = json.loads(out.read_text())
+    assert figures["quick"] is True and figures["submission"]["reused_s"] == 0.4 and figures["api"][0]["clients"] == 50
+    assert {"command", "started_utc", "host", "cpus"} <= figures.keys()
+    assert "fully reused" in result.output
+    refused = CliRunner().invoke(bench, ["--only", "cases,everything"])
+    assert refused.exit_code != 0 and "unknown part everything" in refused.output
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_a_tiny_real_run_measures_a_case_three_ways_and_writes_its_json(tmp_path):
+    from grader.cli.bench import bench
+
+    result = CliRunner().invoke(bench, ["--quick", "--only", "cases", "--cases", "N3", "--repeats", "1", "--out",
+                                        str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    row = json.loads((tmp_path / "bench.json").read_text())["cases"]["per_case"]["N3"]
+    assert 0 < row["stepping_s"] <= row["reused_s"] and row["warm_s"] > 0 and row["isolated_s"] > row["warm_s"]
+    assert "reused/stepping" in result.output and "machine: shared" in result.output
