@@ -3,13 +3,18 @@
 from __future__ import annotations
 
 
-def send_case_run(case_run_id: int, attempt: int, backend: str) -> None:
+# Message priorities as kombu's Redis and filesystem transports serve them: the lowest number first. A run the
+# reconciler re-sends has waited already (its worker died, or the broker lost it): it goes ahead of the queue.
+NEW_PRIORITY, RESENT_PRIORITY = 3, 0
+
+
+def send_case_run(case_run_id: int, attempt: int, backend: str, *, priority: int = NEW_PRIORITY) -> None:
     """Enqueue a case run on the queue of its requested backend: cpu, rocm or cuda, never another."""
     from worker.celery_app import BACKEND_QUEUES, RUN_TASK, app
 
     if backend not in BACKEND_QUEUES:
         raise ValueError(f"no queue for backend {backend!r}")
-    app.send_task(RUN_TASK, args=[case_run_id, attempt], queue=backend)
+    app.send_task(RUN_TASK, args=[case_run_id, attempt], queue=backend, priority=priority)
 
 
 def send_grade(submission_id: int) -> None:
@@ -21,7 +26,7 @@ def send_grade(submission_id: int) -> None:
 def resend(resend) -> None:
     """Enqueue what the reconciler marked (grader.reconcile.Resend)."""
     for case_run_id, attempt, backend in resend.case_runs:
-        send_case_run(case_run_id, attempt, backend)
+        send_case_run(case_run_id, attempt, backend, priority=RESENT_PRIORITY)
     for submission_id in resend.gradings:
         send_grade(submission_id)
 

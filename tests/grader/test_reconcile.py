@@ -28,7 +28,7 @@ def test_broker_down_at_submit_keeps_the_runs_and_the_reconciler_resends_them(ap
     assert runs and all(r["status"] == "queued" and r["attempt"] == 1 for r in runs)
 
     # The broker is back; the fixture records every message sent from here on.
-    monkeypatch.setattr(dispatch, "send_case_run", lambda *args: api.sent.append(args))
+    monkeypatch.setattr(dispatch, "send_case_run", lambda *args, **options: api.sent.append((*args, options)))
     early = CliRunner().invoke(reconcile, [])
     assert early.exit_code == 0, early.output
     assert api.sent == [] and early.output == ""  # not yet past the queue lease: nothing is re-sent
@@ -41,7 +41,8 @@ def test_broker_down_at_submit_keeps_the_runs_and_the_reconciler_resends_them(ap
     assert late.exit_code == 0, late.output
     assert late.output.strip() == f"re-sent {len(runs)} case runs, 0 gradings"
     # Each case run sent exactly once, under its new attempt number, to the queue of its own backend.
-    assert sorted(api.sent) == sorted((r["id"], 2, r["backend"]) for r in runs)
+    # Re-sent ahead of the runs queued since (dispatch.RESENT_PRIORITY).
+    assert sorted(api.sent) == sorted((r["id"], 2, r["backend"], {"priority": dispatch.RESENT_PRIORITY}) for r in runs)
     assert {r["backend"] for r in runs} == {"cpu"}
     after = api.client.get(f"/v1/submissions/{submission_id}/case-runs", headers=api.as_("alice")).json()
     assert all(r["status"] == "queued" and r["attempt"] == 2 for r in after)
