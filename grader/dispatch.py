@@ -74,6 +74,35 @@ def live_workers(*, timeout_s: float = 1.0) -> dict[str, list[str]] | None:
     return {name: sorted(q.get("name", "?") for q in queues) for name, queues in sorted(replies.items())}
 
 
+MARKER_QUEUE = "broker-marker"  # no worker consumes it: a message left there stays until the broker loses it
+
+
+def broker_kept_marker() -> bool | None:
+    """Whether the marker message left on MARKER_QUEUE is still on the broker: True; False when it is gone (a
+    restart without persistence lost every message since it was left; it is left again now); None when the broker
+    cannot be asked. A broker emptied under load is noticed this way at once, even while new runs fill its queues.
+    """
+    from kombu.exceptions import ChannelError
+
+    try:
+        from worker.celery_app import app
+
+        with app.connection_for_write() as connection:
+            marker = connection.SimpleQueue(MARKER_QUEUE)
+            try:
+                try:
+                    kept = marker.qsize() > 0
+                except ChannelError:  # a virtual transport's queue with no message has no key
+                    kept = False
+                if not kept:
+                    marker.put({"left_by": "grader reconcile"})
+                return kept
+            finally:
+                marker.close()
+    except Exception:  # noqa: BLE001 - an unreachable broker says nothing about its messages
+        return None
+
+
 def held_tasks(*, timeout_s: float = 2.0) -> tuple[dict[str, set[tuple[int, int]]], dict[str, int]] | None:
     """Liveness as the broker sees it: per answering worker, the (case_run_id, attempt) of the case runs it is
     running or holds prefetched; and the messages waiting per queue. None when not knowable (embedded broker, or the

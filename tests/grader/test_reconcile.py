@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import timedelta
 
 from click.testing import CliRunner
-from sqlalchemy import update
+from sqlalchemy import select, update
 
 from tests.factories import heavy_imports, reference_sheet
 
@@ -52,3 +52,92 @@ def test_broker_down_at_submit_keeps_the_runs_and_the_reconciler_resends_them(ap
 
 def test_the_api_never_imports_genesis_or_torch():
     assert heavy_imports(["grader.main"], watch=("genesis", "torch", "celery")) == []
+
+
+class _Clock:
+    """Monotonic time that moves only when a pass works (`work_s` per liveness question) or the loop sleeps."""
+
+    def __init__(self, work_s: float, passes: int):
+        self.now, self.work_s, self.passes, self.sleeps = 100.0, work_s, passes, []
+
+    def monotonic(self) -> float:
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        self.sleeps.append(round(seconds, 3))
+        self.now += seconds
+        if len(self.sleeps) == self.passes:
+            raise KeyboardInterrupt  # ends `reconcile --every`
+
+
+def _loop(api, monkeypatch, answers: list, *, broker_url: str, work_s: float) -> list[float]:
+    from grader import dispatch
+    from grader.cli import service
+    from grader.settings import settings
+
+    clock = _Clock(work_s, len(answers))
+
+    def held_tasks():
+        clock.now += clock.work_s  # asking the workers takes time; the interval counts it
+        return answers.pop(0)
+
+    monkeypatch.setattr(dispatch, "held_tasks", held_tasks)
+    monkeypatch.setattr(service, "time", clock)
+    monkeypatch.setattr(settings, "broker_url", broker_url)
+    CliRunner().invoke(service.reconcile, ["--every", "15"])
+    return clock.sleeps
+
+
+def test_reconcile_every_is_measured_pass_start_to_pass_start(api, monkeypatch):
+    # A pass that spends 4 s asking the workers sleeps 11 s: passes start 15 s apart, not 19 s.
+    assert _loop(api, monkeypatch, [({}, {"cpu": 0})] * 3, broker_url="redis://127.0.0.1:1/0", work_s=4) == [11] * 3
+
+
+def test_reconcile_asks_again_soon_while_the_broker_does_not_answer(api, monkeypatch):
+    from grader.reconcile import UNKNOWN_RETRY_S
+
+    # No answer (the broker restarting): the next pass comes UNKNOWN_RETRY_S after this one began, then the
+    # interval is back once the broker answers.
+    sleeps = _loop(api, monkeypatch, [None, None, ({}, {"cpu": 0})], broker_url="redis://127.0.0.1:1/0", work_s=1)
+    assert sleeps == [UNKNOWN_RETRY_S - 1, UNKNOWN_RETRY_S - 1, 14]
+    # The embedded broker never answers: its reconciler keeps the interval.
+    assert _loop(api, monkeypatch, [None, None], broker_url="filesystem://", work_s=1) == [14, 14]
+
+
+def test_a_lost_broker_resends_queued_runs_however_full_the_queue_and_pending_gradings(api):
+    from grader.core.db import new_session
+    from grader.models import CaseRun, Submission, utcnow
+    from grader.reconcile import find_and_requeue
+
+    ids = [api.client.post("/v1/submissions", json={"sheet": reference_sheet()}, headers=api.as_("alice")).json()["id"]
+           for _ in range(2)]
+    with new_session() as session:
+        session.execute(update(Submission).where(Submission.id == ids[1]).values(status="grading", grading_at=utcnow()))
+        session.execute(update(CaseRun).where(CaseRun.submission_id == ids[1]).values(status="done"))
+        session.commit()
+        liveness = ({"cpu@host": set()}, {"cpu": 12, "grade": 0})  # a worker answers; new runs fill the queue again
+        nothing = find_and_requeue(session=session, liveness=liveness)
+        assert (nothing.case_runs, nothing.gradings) == ([], [])
+        resend = find_and_requeue(session=session, liveness=liveness, broker_lost=True)
+        queued = session.scalars(select(CaseRun).where(CaseRun.submission_id == ids[0])).all()
+        assert sorted(resend.case_runs) == sorted((r.id, 2, "cpu") for r in queued)  # young as they are
+        assert all(r.status == "queued" and r.attempt == 2 for r in queued)
+        assert resend.gradings == [ids[1]]  # its grade task went with the broker
+
+
+def test_the_reconciler_reports_a_lost_broker_only_for_a_marker_it_had_left(api, monkeypatch):
+    from grader import dispatch, reconcile
+    from grader.cli import service
+    from grader.settings import settings
+
+    kept = [False, True, True, False, None, True]  # left, seen, seen, gone (restart), no answer, seen
+    passes = []
+    clock = _Clock(0, len(kept))
+    monkeypatch.setattr(dispatch, "held_tasks", lambda: ({}, {"cpu": 0}))
+    monkeypatch.setattr(dispatch, "broker_kept_marker", lambda: kept.pop(0))
+    monkeypatch.setattr(reconcile, "find_and_requeue",
+                        lambda *, session, liveness, broker_lost: passes.append(broker_lost) or reconcile.Resend())
+    monkeypatch.setattr(service, "time", clock)
+    monkeypatch.setattr(settings, "broker_url", "redis://127.0.0.1:1/0")
+    CliRunner().invoke(service.reconcile, ["--every", "15"])
+    assert passes == [False, False, False, True, False, False]
