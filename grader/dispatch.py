@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 
-# Message priorities as kombu's Redis and filesystem transports serve them: the lowest number first. A run the
-# reconciler re-sends has waited already (its worker died, or the broker lost it): it goes ahead of the queue.
-NEW_PRIORITY, RESENT_PRIORITY = 3, 0
+from grader.core.lifecycle import NEW_PRIORITY, REQUEUED_PRIORITY, RERUN_PRIORITY
 
 
 def send_case_run(case_run_id: int, attempt: int, backend: str, *, priority: int = NEW_PRIORITY) -> None:
@@ -26,7 +24,8 @@ def send_grade(submission_id: int) -> None:
 def resend(resend) -> None:
     """Enqueue what the reconciler marked (grader.reconcile.Resend)."""
     for case_run_id, attempt, backend in resend.case_runs:
-        send_case_run(case_run_id, attempt, backend, priority=RESENT_PRIORITY)
+        rerun = case_run_id in resend.were_running
+        send_case_run(case_run_id, attempt, backend, priority=RERUN_PRIORITY if rerun else REQUEUED_PRIORITY)
     for submission_id in resend.gradings:
         send_grade(submission_id)
 

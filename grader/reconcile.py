@@ -20,6 +20,7 @@ from datetime import datetime, timedelta
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from grader.core import lifecycle
 from grader.models import CaseRun, Event, Submission, utcnow
 from grader.settings import settings
 
@@ -35,6 +36,7 @@ UNKNOWN_RETRY_S = 2.0
 @dataclass
 class Resend:
     case_runs: list[tuple[int, int, str]] = field(default_factory=list)  # (id, attempt, backend)
+    were_running: set[int] = field(default_factory=set)  # ids among case_runs whose worker died: they go first
     gradings: list[int] = field(default_factory=list)
 
 
@@ -70,16 +72,6 @@ def orphaned(session: Session, now: datetime, liveness, broker_lost: bool = Fals
     return found
 
 
-def dead_here(session: Session, now: datetime) -> list[tuple[CaseRun, str]]:
-    """Runs claimed on this very host by a process that no longer exists (knowable without any broker)."""
-    from grader.core.lifecycle import HOST, _pid_alive
-
-    running = select(CaseRun).where(CaseRun.status == "running", CaseRun.worker == HOST,
-                                    CaseRun.started_at < now - timedelta(seconds=LIVENESS_GRACE_S))
-    return [(run, f"its process {run.worker_pid} on {HOST} is gone")
-            for run in session.scalars(running.with_for_update(skip_locked=True)).all() if not _pid_alive(run.worker_pid)]
-
-
 def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=None,
                      broker_lost: bool = False) -> Resend:
     """Mark what must be re-sent (committed), and return it for the caller to enqueue.
@@ -92,15 +84,15 @@ def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=
     stale = select(CaseRun).where(CaseRun.status == "queued",
                                   CaseRun.queued_at < now - timedelta(seconds=settings.queue_lease_s))
     todo = orphaned(session, now, liveness, broker_lost) if liveness is not None else []
-    todo += [(run, reason) for run, reason in dead_here(session, now) if run.id not in {r.id for r, _ in todo}]
+    todo += [(run, f"its process {run.worker_pid} on {lifecycle.HOST} is gone") for run in lifecycle.dead_here(session)
+             if run.id not in {r.id for r, _ in todo}]
     for reason, query in (("lease expired", lost), ("message presumed lost", stale)):
         todo += [(run, reason) for run in session.scalars(query.with_for_update(skip_locked=True)).all()
                  if run.id not in {r.id for r, _ in todo}]
     for run, reason in todo:
-        run.status, run.attempt, run.queued_at = "queued", run.attempt + 1, utcnow()
-        run.worker = run.worker_pid = run.lease_until = None
-        session.add(Event(submission_id=run.submission_id, case_run_id=run.id, state="requeued",
-                          detail=f"{reason}; attempt {run.attempt} on queue {run.backend}"))
+        if run.status == "running":
+            resend.were_running.add(run.id)
+        lifecycle.requeue(session, run, reason)
         resend.case_runs.append((run.id, run.attempt, run.backend))
     # A grade task lost with the broker is re-sent at once; grading happens exactly once whatever the duplicates.
     grading_lease = 0 if broker_lost and liveness is not None else settings.lease_s

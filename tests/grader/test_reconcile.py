@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import subprocess
 from datetime import timedelta
 
 from click.testing import CliRunner
@@ -41,8 +42,8 @@ def test_broker_down_at_submit_keeps_the_runs_and_the_reconciler_resends_them(ap
     assert late.exit_code == 0, late.output
     assert late.output.strip() == f"re-sent {len(runs)} case runs, 0 gradings"
     # Each case run sent exactly once, under its new attempt number, to the queue of its own backend.
-    # Re-sent ahead of the runs queued since (dispatch.RESENT_PRIORITY).
-    assert sorted(api.sent) == sorted((r["id"], 2, r["backend"], {"priority": dispatch.RESENT_PRIORITY}) for r in runs)
+    # Re-sent ahead of the runs queued since (behind any run whose worker died mid-case).
+    assert sorted(api.sent) == sorted((r["id"], 2, r["backend"], {"priority": dispatch.REQUEUED_PRIORITY}) for r in runs)
     assert {r["backend"] for r in runs} == {"cpu"}
     after = api.client.get(f"/v1/submissions/{submission_id}/case-runs", headers=api.as_("alice")).json()
     assert all(r["status"] == "queued" and r["attempt"] == 2 for r in after)
@@ -106,6 +107,7 @@ def test_reconcile_asks_again_soon_while_the_broker_does_not_answer(api, monkeyp
 
 def test_a_lost_broker_resends_queued_runs_however_full_the_queue_and_pending_gradings(api):
     from grader.core.db import new_session
+    from grader.core.lifecycle import HOST
     from grader.models import CaseRun, Submission, utcnow
     from grader.reconcile import find_and_requeue
 
@@ -118,10 +120,17 @@ def test_a_lost_broker_resends_queued_runs_however_full_the_queue_and_pending_gr
         liveness = ({"cpu@host": set()}, {"cpu": 12, "grade": 0})  # a worker answers; new runs fill the queue again
         nothing = find_and_requeue(session=session, liveness=liveness)
         assert (nothing.case_runs, nothing.gradings) == ([], [])
+        # One run was claimed a moment ago on this host by a process that is gone: no grace, and it goes first.
+        gone = subprocess.Popen(["true"])
+        gone.wait()
+        killed = session.scalars(select(CaseRun).where(CaseRun.submission_id == ids[0])).first()
+        killed.status, killed.worker, killed.worker_pid, killed.started_at = "running", HOST, gone.pid, utcnow()
+        session.commit()
         resend = find_and_requeue(session=session, liveness=liveness, broker_lost=True)
         queued = session.scalars(select(CaseRun).where(CaseRun.submission_id == ids[0])).all()
         assert sorted(resend.case_runs) == sorted((r.id, 2, "cpu") for r in queued)  # young as they are
         assert all(r.status == "queued" and r.attempt == 2 for r in queued)
+        assert resend.were_running == {killed.id}
         assert resend.gradings == [ids[1]]  # its grade task went with the broker
 
 
