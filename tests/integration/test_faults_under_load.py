@@ -144,7 +144,7 @@ def _check_outcome(db: Db, submission_ids: list[int]) -> None:
         subs = session.scalars(select(Submission).where(Submission.id.in_(submission_ids))).all()
         grades = dict(session.execute(select(Grade.submission_id, func.count()).group_by(Grade.submission_id)).all())
         runs = session.scalars(select(CaseRun).where(CaseRun.submission_id.in_(submission_ids))).all()
-        events = session.scalars(select(Event).where(Event.submission_id.in_(submission_ids))).all()
+        events = session.scalars(select(Event).where(Event.submission_id.in_(submission_ids)).order_by(Event.id)).all()
         return subs, grades, runs, events
 
     subs, grades, runs, events = db.read(read)
