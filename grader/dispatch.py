@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 from grader.core.lifecycle import NEW_PRIORITY, REQUEUED_PRIORITY, RERUN_PRIORITY
 
 

@@ -27,7 +27,8 @@ from grader.settings import settings
 # A run younger than this is never judged by liveness: its message may be between the broker and a worker.
 LIVENESS_GRACE_S = 10.0
 # How often the shipped reconcilers pass (embedded service, docker-compose): a killed worker's run is re-queued
-# within about LIVENESS_GRACE_S + RECONCILE_EVERY_S of the kill.
+# within about RECONCILE_EVERY_S of the kill on its own host (a dead pid needs no grace), LIVENESS_GRACE_S +
+# RECONCILE_EVERY_S from another host; a worker starting on that host re-queues it at once (worker.tasks).
 RECONCILE_EVERY_S = 15.0
 # Where the broker did not answer (down, restarting), the next pass comes this soon instead of a whole interval.
 UNKNOWN_RETRY_S = 2.0
