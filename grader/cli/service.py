@@ -64,15 +64,16 @@ def reconcile(every: float) -> None:
     from grader.dispatch import broker_kept_marker, held_tasks, resend
     from grader.reconcile import UNKNOWN_RETRY_S, find_and_requeue
 
-    marker_left = False
+    marker_left = lost_seen = False
     while True:
         started = time.monotonic()
         liveness = held_tasks()  # asked before reading the runs, so a task it reports held is never judged lost
-        broker_lost = False
+        broker_lost = lost_seen
         if liveness is not None and not settings.broker_url.startswith("filesystem"):
             kept = broker_kept_marker()
             # Only a marker this process left and saw can be missed: the first pass only leaves it.
-            broker_lost, marker_left = marker_left and kept is False, marker_left or kept is not None
+            broker_lost, marker_left = broker_lost or (marker_left and kept is False), marker_left or kept is not None
+        lost_seen = broker_lost and liveness is None  # kept for a pass that can act on it
         with new_session() as session:
             todo = find_and_requeue(session=session, liveness=liveness, broker_lost=broker_lost)
         resend(todo)
@@ -83,8 +84,14 @@ def reconcile(every: float) -> None:
         # A broker that did not answer (restarting) is asked again soon: what it lost is re-sent seconds after it
         # is back, not a whole interval later. The embedded broker never answers; there the interval stands.
         unknown = liveness is None and not settings.broker_url.startswith("filesystem")
-        wait = min(every, UNKNOWN_RETRY_S) if unknown else every
-        time.sleep(max(0.0, started + wait - time.monotonic()))
+        deadline = started + (min(every, UNKNOWN_RETRY_S) if unknown else every)
+        # Meanwhile the marker is watched (one cheap read every UNKNOWN_RETRY_S): a broker that lost its messages
+        # is reconciled at once, not at the next pass.
+        while (left := deadline - time.monotonic()) > 0:
+            time.sleep(min(left, UNKNOWN_RETRY_S) if marker_left else left)
+            if marker_left and broker_kept_marker() is False:
+                lost_seen = True
+                break
 
 
 @click.command("submit")

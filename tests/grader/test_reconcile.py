@@ -83,6 +83,7 @@ def _loop(api, monkeypatch, answers: list, *, broker_url: str, work_s: float) ->
         return answers.pop(0)
 
     monkeypatch.setattr(dispatch, "held_tasks", held_tasks)
+    monkeypatch.setattr(dispatch, "broker_kept_marker", lambda: None)
     monkeypatch.setattr(service, "time", clock)
     monkeypatch.setattr(settings, "broker_url", broker_url)
     CliRunner().invoke(service.reconcile, ["--every", "15"])
@@ -134,19 +135,32 @@ def test_a_lost_broker_resends_queued_runs_however_full_the_queue_and_pending_gr
         assert resend.gradings == [ids[1]]  # its grade task went with the broker
 
 
-def test_the_reconciler_reports_a_lost_broker_only_for_a_marker_it_had_left(api, monkeypatch):
+def test_the_reconciler_reports_a_lost_broker_only_for_a_marker_it_had_left_and_at_once(api, monkeypatch):
     from grader import dispatch, reconcile
     from grader.cli import service
     from grader.settings import settings
 
-    kept = [False, True, True, False, None, True]  # left, seen, seen, gone (restart), no answer, seen
+    broker = {"marker": False, "restarted": False}
+    clock = _Clock(0, 20)
     passes = []
-    clock = _Clock(0, len(kept))
-    monkeypatch.setattr(dispatch, "held_tasks", lambda: ({}, {"cpu": 0}))
-    monkeypatch.setattr(dispatch, "broker_kept_marker", lambda: kept.pop(0))
-    monkeypatch.setattr(reconcile, "find_and_requeue",
-                        lambda *, session, liveness, broker_lost: passes.append(broker_lost) or reconcile.Resend())
+
+    def kept() -> bool:  # as dispatch.broker_kept_marker: a missing marker is left again
+        was, broker["marker"] = broker["marker"], True
+        return was
+
+    def sleep(seconds: float) -> None:
+        _Clock.sleep(clock, seconds)
+        if clock.now >= 120 and not broker["restarted"]:  # Redis restarted without persistence at t=120
+            broker.update(marker=False, restarted=True)
+
+    monkeypatch.setattr(clock, "sleep", sleep)
+    monkeypatch.setattr(dispatch, "held_tasks", lambda: ({}, {"cpu": 3}))
+    monkeypatch.setattr(dispatch, "broker_kept_marker", kept)
+    monkeypatch.setattr(reconcile, "find_and_requeue", lambda *, session, liveness, broker_lost:
+                        passes.append((clock.now, broker_lost)) or reconcile.Resend())
     monkeypatch.setattr(service, "time", clock)
     monkeypatch.setattr(settings, "broker_url", "redis://127.0.0.1:1/0")
     CliRunner().invoke(service.reconcile, ["--every", "15"])
-    assert passes == [False, False, False, True, False, False]
+    # The first pass only leaves the marker; the loss at t=120 is seen by the watch at t=121 and acted on at once,
+    # then passes are 15 s apart again.
+    assert passes == [(100, False), (115, False), (121, True), (136, False)]
