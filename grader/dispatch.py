@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+from grader.core.lifecycle import NEW_PRIORITY, REQUEUED_PRIORITY, RERUN_PRIORITY
 
-def send_case_run(case_run_id: int, attempt: int, backend: str) -> None:
+
+def send_case_run(case_run_id: int, attempt: int, backend: str, *, priority: int = NEW_PRIORITY) -> None:
     """Enqueue a case run on the queue of its requested backend: cpu, rocm or cuda, never another."""
     from worker.celery_app import BACKEND_QUEUES, RUN_TASK, app
 
     if backend not in BACKEND_QUEUES:
         raise ValueError(f"no queue for backend {backend!r}")
-    app.send_task(RUN_TASK, args=[case_run_id, attempt], queue=backend)
+    app.send_task(RUN_TASK, args=[case_run_id, attempt], queue=backend, priority=priority)
 
 
 def send_grade(submission_id: int) -> None:
@@ -21,7 +23,8 @@ def send_grade(submission_id: int) -> None:
 def resend(resend) -> None:
     """Enqueue what the reconciler marked (grader.reconcile.Resend)."""
     for case_run_id, attempt, backend in resend.case_runs:
-        send_case_run(case_run_id, attempt, backend)
+        rerun = case_run_id in resend.were_running
+        send_case_run(case_run_id, attempt, backend, priority=RERUN_PRIORITY if rerun else REQUEUED_PRIORITY)
     for submission_id in resend.gradings:
         send_grade(submission_id)
 
@@ -67,6 +70,35 @@ def live_workers(*, timeout_s: float = 1.0) -> dict[str, list[str]] | None:
         return None
     replies = app.control.inspect(timeout=timeout_s).active_queues() or {}
     return {name: sorted(q.get("name", "?") for q in queues) for name, queues in sorted(replies.items())}
+
+
+MARKER_QUEUE = "broker-marker"  # no worker consumes it: a message left there stays until the broker loses it
+
+
+def broker_kept_marker() -> bool | None:
+    """Whether the marker message left on MARKER_QUEUE is still on the broker: True; False when it is gone (a
+    restart without persistence lost every message since it was left; it is left again now); None when the broker
+    cannot be asked. A broker emptied under load is noticed this way at once, even while new runs fill its queues.
+    """
+    from kombu.exceptions import ChannelError
+
+    try:
+        from worker.celery_app import app
+
+        with app.connection_for_write() as connection:
+            marker = connection.SimpleQueue(MARKER_QUEUE)
+            try:
+                try:
+                    kept = marker.qsize() > 0
+                except ChannelError:  # a virtual transport's queue with no message has no key
+                    kept = False
+                if not kept:
+                    marker.put({"left_by": "grader reconcile"})
+                return kept
+            finally:
+                marker.close()
+    except Exception:  # noqa: BLE001 - an unreachable broker says nothing about its messages
+        return None
 
 
 def held_tasks(*, timeout_s: float = 2.0) -> tuple[dict[str, set[tuple[int, int]]], dict[str, int]] | None:

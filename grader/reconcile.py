@@ -2,8 +2,9 @@
 
 - running, but no live worker holds it (its worker was killed; Celery's remote control says which tasks each live
   worker holds): back to queued with a new attempt number, re-sent, without waiting for the lease;
-- queued, but its queue is empty on the broker and no worker holds it (a broker restart lost the message):
-  re-sent at once;
+- queued, but its queue is empty on the broker and no worker holds it, or the broker lost every message (the marker
+  `grader.dispatch.broker_kept_marker` left on it is gone: a restart without persistence): re-sent at once, and so
+  are pending gradings;
 - where liveness is not knowable (the embedded broker, or no broker answer) the leases decide:
   running past its lease (worker crash, machine loss), or queued longer than queue_lease_s;
 - grading longer than the lease (grade task lost): the grade task is re-sent (grading is exactly-once anyway).
@@ -19,19 +20,24 @@ from datetime import datetime, timedelta
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from grader.core import lifecycle
 from grader.models import CaseRun, Event, Submission, utcnow
 from grader.settings import settings
 
 # A run younger than this is never judged by liveness: its message may be between the broker and a worker.
 LIVENESS_GRACE_S = 10.0
 # How often the shipped reconcilers pass (embedded service, docker-compose): a killed worker's run is re-queued
-# within about LIVENESS_GRACE_S + RECONCILE_EVERY_S of the kill.
+# within about RECONCILE_EVERY_S of the kill on its own host (a dead pid needs no grace), LIVENESS_GRACE_S +
+# RECONCILE_EVERY_S from another host; a worker starting on that host re-queues it at once (worker.tasks).
 RECONCILE_EVERY_S = 15.0
+# Where the broker did not answer (down, restarting), the next pass comes this soon instead of a whole interval.
+UNKNOWN_RETRY_S = 2.0
 
 
 @dataclass
 class Resend:
     case_runs: list[tuple[int, int, str]] = field(default_factory=list)  # (id, attempt, backend)
+    were_running: set[int] = field(default_factory=set)  # ids among case_runs whose worker died: they go first
     gradings: list[int] = field(default_factory=list)
 
 
@@ -39,8 +45,11 @@ def _host(worker_name: str) -> str:
     return worker_name.split("@", 1)[-1]
 
 
-def orphaned(session: Session, now: datetime, liveness) -> list[tuple[CaseRun, str]]:
-    """Runs no live worker holds, by the broker's answer (`grader.dispatch.held_tasks`), with the reason."""
+def orphaned(session: Session, now: datetime, liveness, broker_lost: bool = False) -> list[tuple[CaseRun, str]]:
+    """Runs no live worker holds, by the broker's answer (`grader.dispatch.held_tasks`), with the reason.
+
+    broker_lost: the broker lost every message (`grader.dispatch.broker_kept_marker`), so no queued run's message
+    can be trusted to be there, however full its queue is again."""
     held_by, depths = liveness
     held = set().union(*held_by.values()) if held_by else set()
     hosts = {_host(name) for name in held_by}
@@ -52,45 +61,44 @@ def orphaned(session: Session, now: datetime, liveness) -> list[tuple[CaseRun, s
         # and is left to its lease.
         if (run.id, run.attempt) not in held and run.worker in hosts:
             found.append((run, f"no live worker holds it (worker {run.worker} pid {run.worker_pid} is gone)"))
-    queued = select(CaseRun).where(CaseRun.status == "queued", CaseRun.queued_at < grace)
+    # After a loss no queued run's message is trusted, however young: a duplicate is dropped as stale when claimed.
+    queued = select(CaseRun).where(CaseRun.status == "queued", CaseRun.queued_at < (now if broker_lost else grace))
     for run in session.scalars(queued.with_for_update(skip_locked=True)).all():
-        if depths.get(run.backend) == 0 and (run.id, run.attempt) not in held:
+        if (run.id, run.attempt) in held:
+            continue
+        if broker_lost:
+            found.append((run, "its message is gone (the broker lost its messages: restarted without them)"))
+        elif depths.get(run.backend) == 0:
             found.append((run, f"its message is gone (queue {run.backend} is empty and no worker holds it)"))
     return found
 
 
-def dead_here(session: Session, now: datetime) -> list[tuple[CaseRun, str]]:
-    """Runs claimed on this very host by a process that no longer exists (knowable without any broker)."""
-    from grader.core.lifecycle import HOST, _pid_alive
-
-    running = select(CaseRun).where(CaseRun.status == "running", CaseRun.worker == HOST,
-                                    CaseRun.started_at < now - timedelta(seconds=LIVENESS_GRACE_S))
-    return [(run, f"its process {run.worker_pid} on {HOST} is gone")
-            for run in session.scalars(running.with_for_update(skip_locked=True)).all() if not _pid_alive(run.worker_pid)]
-
-
-def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=None) -> Resend:
+def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=None,
+                     broker_lost: bool = False) -> Resend:
     """Mark what must be re-sent (committed), and return it for the caller to enqueue.
 
-    `liveness` is `grader.dispatch.held_tasks()`'s answer, or None where it is not knowable (leases only)."""
+    `liveness` is `grader.dispatch.held_tasks()`'s answer, or None where it is not knowable (leases only).
+    `broker_lost`: the broker lost its messages; queued runs and pending gradings are re-sent without their leases."""
     now = now or utcnow()
     resend = Resend()
     lost = select(CaseRun).where(CaseRun.status == "running", CaseRun.lease_until < now)
     stale = select(CaseRun).where(CaseRun.status == "queued",
                                   CaseRun.queued_at < now - timedelta(seconds=settings.queue_lease_s))
-    todo = orphaned(session, now, liveness) if liveness is not None else []
-    todo += [(run, reason) for run, reason in dead_here(session, now) if run.id not in {r.id for r, _ in todo}]
+    todo = orphaned(session, now, liveness, broker_lost) if liveness is not None else []
+    todo += [(run, f"its process {run.worker_pid} on {lifecycle.HOST} is gone") for run in lifecycle.dead_here(session)
+             if run.id not in {r.id for r, _ in todo}]
     for reason, query in (("lease expired", lost), ("message presumed lost", stale)):
         todo += [(run, reason) for run in session.scalars(query.with_for_update(skip_locked=True)).all()
                  if run.id not in {r.id for r, _ in todo}]
     for run, reason in todo:
-        run.status, run.attempt, run.queued_at = "queued", run.attempt + 1, utcnow()
-        run.worker = run.worker_pid = run.lease_until = None
-        session.add(Event(submission_id=run.submission_id, case_run_id=run.id, state="requeued",
-                          detail=f"{reason}; attempt {run.attempt} on queue {run.backend}"))
+        if run.status == "running":
+            resend.were_running.add(run.id)
+        lifecycle.requeue(session, run, reason)
         resend.case_runs.append((run.id, run.attempt, run.backend))
+    # A grade task lost with the broker is re-sent at once; grading happens exactly once whatever the duplicates.
+    grading_lease = 0 if broker_lost and liveness is not None else settings.lease_s
     stuck = select(Submission).where(Submission.status == "grading",
-                                     Submission.grading_at < now - timedelta(seconds=settings.lease_s))
+                                     Submission.grading_at < now - timedelta(seconds=grading_lease))
     for submission in session.scalars(stuck).all():
         submission.grading_at = utcnow()
         session.add(Event(submission_id=submission.id, state="grading", detail="grade task re-sent"))

@@ -20,8 +20,13 @@ from collections.abc import Sequence
 
 from celery import Celery
 from kombu import Queue
+from kombu.transport import TRANSPORT_ALIASES
 
 from grader.settings import settings
+
+# filesystem:// is kombu's filesystem transport serving messages by priority (worker.filesystem_broker), in every
+# process that sends or consumes: a re-sent run goes ahead of the queue as it does on Redis.
+TRANSPORT_ALIASES["filesystem"] = "worker.filesystem_broker:Transport"
 
 
 def transport_options(url: str) -> dict:

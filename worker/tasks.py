@@ -5,10 +5,13 @@ A case that fails (wrong backend, crash, timeout) is a result, stored as such, n
 
 from __future__ import annotations
 
-from celery.signals import worker_process_shutdown
+import logging
+
+from celery.signals import worker_init, worker_process_shutdown
 from kombu.exceptions import OperationalError as BrokerError
 from sqlalchemy.exc import OperationalError as DatabaseError
 
+from grader.core import lifecycle
 from grader.core.db import new_session
 from grader.settings import settings
 from worker import slot
@@ -44,3 +47,29 @@ def grade_submission(submission_id: int) -> None:
 @worker_process_shutdown.connect
 def _close_slot(**_) -> None:
     slot.close_slot()
+
+
+@worker_init.connect
+def _rerun_what_died_here(**_) -> None:
+    """A worker starting where a worker was killed first re-sends the runs the dead processes held, ahead of the
+    queue: the killed case is this worker's first, instead of waiting for the reconciler's next pass while the
+    worker starts something else (whose warm case process alone takes tens of seconds)."""
+    from sqlalchemy.orm import Session
+
+    from grader.core.db import make_engine
+
+    engine = make_engine(settings.database_url)  # its own: the pool processes forked next must inherit no connection
+    try:
+        with Session(engine) as session:
+            todo = []
+            for run in lifecycle.dead_here(session):
+                lifecycle.requeue(session, run, f"its process {run.worker_pid} on {lifecycle.HOST} is gone "
+                                                "(seen by a worker starting there)")
+                todo.append((run.id, run.attempt, run.backend))
+            session.commit()
+        for case_run_id, attempt, backend in todo:
+            run_case_run.apply_async(args=[case_run_id, attempt], queue=backend, priority=lifecycle.RERUN_PRIORITY)
+    except INFRA_ERRORS:  # queued in the database or not touched at all: the reconciler re-sends it
+        logging.getLogger(__name__).exception("could not re-send the runs of dead processes on %s", lifecycle.HOST)
+    finally:
+        engine.dispose()

@@ -57,23 +57,41 @@ def worker(queues: tuple[str, ...], loglevel: str) -> None:
 
 
 @click.command()
-@click.option("--every", type=float, default=0.0, help="Repeat every N seconds (0: once).")
+@click.option("--every", type=float, default=0.0, help="Repeat every N seconds, pass start to pass start (0: once).")
 def reconcile(every: float) -> None:
     """Re-send case runs left queued or running past their lease, and stuck gradings."""
     from grader.core.db import new_session
-    from grader.dispatch import held_tasks, resend
-    from grader.reconcile import find_and_requeue
+    from grader.dispatch import broker_kept_marker, held_tasks, resend
+    from grader.reconcile import UNKNOWN_RETRY_S, find_and_requeue
 
+    marker_left = lost_seen = False
     while True:
+        started = time.monotonic()
         liveness = held_tasks()  # asked before reading the runs, so a task it reports held is never judged lost
+        broker_lost = lost_seen
+        if liveness is not None and not settings.broker_url.startswith("filesystem"):
+            kept = broker_kept_marker()
+            # Only a marker this process left and saw can be missed: the first pass only leaves it.
+            broker_lost, marker_left = broker_lost or (marker_left and kept is False), marker_left or kept is not None
+        lost_seen = broker_lost and liveness is None  # kept for a pass that can act on it
         with new_session() as session:
-            todo = find_and_requeue(session=session, liveness=liveness)
+            todo = find_and_requeue(session=session, liveness=liveness, broker_lost=broker_lost)
         resend(todo)
         if todo.case_runs or todo.gradings:
             click.echo(f"re-sent {len(todo.case_runs)} case runs, {len(todo.gradings)} gradings")
         if not every:
             return
-        time.sleep(every)
+        # A broker that did not answer (restarting) is asked again soon: what it lost is re-sent seconds after it
+        # is back, not a whole interval later. The embedded broker never answers; there the interval stands.
+        unknown = liveness is None and not settings.broker_url.startswith("filesystem")
+        deadline = started + (min(every, UNKNOWN_RETRY_S) if unknown else every)
+        # Meanwhile the marker is watched (one cheap read every UNKNOWN_RETRY_S): a broker that lost its messages
+        # is reconciled at once, not at the next pass.
+        while (left := deadline - time.monotonic()) > 0:
+            time.sleep(min(left, UNKNOWN_RETRY_S) if marker_left else left)
+            if marker_left and broker_kept_marker() is False:
+                lost_seen = True
+                break
 
 
 @click.command("submit")

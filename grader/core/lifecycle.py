@@ -22,6 +22,10 @@ from grader.settings import settings
 
 TERMINAL = ("done", "failed")
 HOST = socket.gethostname()
+# Where a re-sent run goes in its queue (kombu's Redis and filesystem transports serve the lowest number first; Redis
+# keeps one list per step of 0, 3, 6, 9): a run whose worker died mid-case first, then a queued run whose message was
+# lost (a broker restart), then new runs.
+RERUN_PRIORITY, REQUEUED_PRIORITY, NEW_PRIORITY = 0, 3, 6
 
 
 def _pid_alive(pid: int | None) -> bool:
@@ -34,6 +38,23 @@ def _pid_alive(pid: int | None) -> bool:
     except PermissionError:
         return True
     return True
+
+
+def dead_here(session: Session) -> list[CaseRun]:
+    """Running runs claimed on this very host by a process that no longer exists (locked; knowable without a broker).
+
+    No grace: a claim records its live pid in the same transaction, so a dead pid is certain, never in transit."""
+    running = select(CaseRun).where(CaseRun.status == "running", CaseRun.worker == HOST)
+    return [run for run in session.scalars(running.with_for_update(skip_locked=True)).all()
+            if not _pid_alive(run.worker_pid)]
+
+
+def requeue(session: Session, run: CaseRun, reason: str) -> None:
+    """Back to queued under a new attempt number, which makes every older message for it stale; the caller sends it."""
+    run.status, run.attempt, run.queued_at = "queued", run.attempt + 1, utcnow()
+    run.worker = run.worker_pid = run.lease_until = None
+    session.add(Event(submission_id=run.submission_id, case_run_id=run.id, state="requeued",
+                      detail=f"{reason}; attempt {run.attempt} on queue {run.backend}"))
 
 
 def claim(*, session: Session, case_run_id: int, attempt: int) -> tuple[CaseRun | None, bool]:

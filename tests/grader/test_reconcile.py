@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import subprocess
 from datetime import timedelta
 
 from click.testing import CliRunner
-from sqlalchemy import update
+from sqlalchemy import select, update
 
 from tests.factories import heavy_imports, reference_sheet
 
@@ -28,7 +29,7 @@ def test_broker_down_at_submit_keeps_the_runs_and_the_reconciler_resends_them(ap
     assert runs and all(r["status"] == "queued" and r["attempt"] == 1 for r in runs)
 
     # The broker is back; the fixture records every message sent from here on.
-    monkeypatch.setattr(dispatch, "send_case_run", lambda *args: api.sent.append(args))
+    monkeypatch.setattr(dispatch, "send_case_run", lambda *args, **options: api.sent.append((*args, options)))
     early = CliRunner().invoke(reconcile, [])
     assert early.exit_code == 0, early.output
     assert api.sent == [] and early.output == ""  # not yet past the queue lease: nothing is re-sent
@@ -41,7 +42,8 @@ def test_broker_down_at_submit_keeps_the_runs_and_the_reconciler_resends_them(ap
     assert late.exit_code == 0, late.output
     assert late.output.strip() == f"re-sent {len(runs)} case runs, 0 gradings"
     # Each case run sent exactly once, under its new attempt number, to the queue of its own backend.
-    assert sorted(api.sent) == sorted((r["id"], 2, r["backend"]) for r in runs)
+    # Re-sent ahead of the runs queued since (behind any run whose worker died mid-case).
+    assert sorted(api.sent) == sorted((r["id"], 2, r["backend"], {"priority": dispatch.REQUEUED_PRIORITY}) for r in runs)
     assert {r["backend"] for r in runs} == {"cpu"}
     after = api.client.get(f"/v1/submissions/{submission_id}/case-runs", headers=api.as_("alice")).json()
     assert all(r["status"] == "queued" and r["attempt"] == 2 for r in after)
@@ -51,3 +53,114 @@ def test_broker_down_at_submit_keeps_the_runs_and_the_reconciler_resends_them(ap
 
 def test_the_api_never_imports_genesis_or_torch():
     assert heavy_imports(["grader.main"], watch=("genesis", "torch", "celery")) == []
+
+
+class _Clock:
+    """Monotonic time that moves only when a pass works (`work_s` per liveness question) or the loop sleeps."""
+
+    def __init__(self, work_s: float, passes: int):
+        self.now, self.work_s, self.passes, self.sleeps = 100.0, work_s, passes, []
+
+    def monotonic(self) -> float:
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        self.sleeps.append(round(seconds, 3))
+        self.now += seconds
+        if len(self.sleeps) == self.passes:
+            raise KeyboardInterrupt  # ends `reconcile --every`
+
+
+def _loop(api, monkeypatch, answers: list, *, broker_url: str, work_s: float) -> list[float]:
+    from grader import dispatch
+    from grader.cli import service
+    from grader.settings import settings
+
+    clock = _Clock(work_s, len(answers))
+
+    def held_tasks():
+        clock.now += clock.work_s  # asking the workers takes time; the interval counts it
+        return answers.pop(0)
+
+    monkeypatch.setattr(dispatch, "held_tasks", held_tasks)
+    monkeypatch.setattr(dispatch, "broker_kept_marker", lambda: None)
+    monkeypatch.setattr(service, "time", clock)
+    monkeypatch.setattr(settings, "broker_url", broker_url)
+    CliRunner().invoke(service.reconcile, ["--every", "15"])
+    return clock.sleeps
+
+
+def test_reconcile_every_is_measured_pass_start_to_pass_start(api, monkeypatch):
+    # A pass that spends 4 s asking the workers sleeps 11 s: passes start 15 s apart, not 19 s.
+    assert _loop(api, monkeypatch, [({}, {"cpu": 0})] * 3, broker_url="redis://127.0.0.1:1/0", work_s=4) == [11] * 3
+
+
+def test_reconcile_asks_again_soon_while_the_broker_does_not_answer(api, monkeypatch):
+    from grader.reconcile import UNKNOWN_RETRY_S
+
+    # No answer (the broker restarting): the next pass comes UNKNOWN_RETRY_S after this one began, then the
+    # interval is back once the broker answers.
+    sleeps = _loop(api, monkeypatch, [None, None, ({}, {"cpu": 0})], broker_url="redis://127.0.0.1:1/0", work_s=1)
+    assert sleeps == [UNKNOWN_RETRY_S - 1, UNKNOWN_RETRY_S - 1, 14]
+    # The embedded broker never answers: its reconciler keeps the interval.
+    assert _loop(api, monkeypatch, [None, None], broker_url="filesystem://", work_s=1) == [14, 14]
+
+
+def test_a_lost_broker_resends_queued_runs_however_full_the_queue_and_pending_gradings(api):
+    from grader.core.db import new_session
+    from grader.core.lifecycle import HOST
+    from grader.models import CaseRun, Submission, utcnow
+    from grader.reconcile import find_and_requeue
+
+    ids = [api.client.post("/v1/submissions", json={"sheet": reference_sheet()}, headers=api.as_("alice")).json()["id"]
+           for _ in range(2)]
+    with new_session() as session:
+        session.execute(update(Submission).where(Submission.id == ids[1]).values(status="grading", grading_at=utcnow()))
+        session.execute(update(CaseRun).where(CaseRun.submission_id == ids[1]).values(status="done"))
+        session.commit()
+        liveness = ({"cpu@host": set()}, {"cpu": 12, "grade": 0})  # a worker answers; new runs fill the queue again
+        nothing = find_and_requeue(session=session, liveness=liveness)
+        assert (nothing.case_runs, nothing.gradings) == ([], [])
+        # One run was claimed a moment ago on this host by a process that is gone: no grace, and it goes first.
+        gone = subprocess.Popen(["true"])
+        gone.wait()
+        killed = session.scalars(select(CaseRun).where(CaseRun.submission_id == ids[0])).first()
+        killed.status, killed.worker, killed.worker_pid, killed.started_at = "running", HOST, gone.pid, utcnow()
+        session.commit()
+        resend = find_and_requeue(session=session, liveness=liveness, broker_lost=True)
+        queued = session.scalars(select(CaseRun).where(CaseRun.submission_id == ids[0])).all()
+        assert sorted(resend.case_runs) == sorted((r.id, 2, "cpu") for r in queued)  # young as they are
+        assert all(r.status == "queued" and r.attempt == 2 for r in queued)
+        assert resend.were_running == {killed.id}
+        assert resend.gradings == [ids[1]]  # its grade task went with the broker
+
+
+def test_the_reconciler_reports_a_lost_broker_only_for_a_marker_it_had_left_and_at_once(api, monkeypatch):
+    from grader import dispatch, reconcile
+    from grader.cli import service
+    from grader.settings import settings
+
+    broker = {"marker": False, "restarted": False}
+    clock = _Clock(0, 20)
+    passes = []
+
+    def kept() -> bool:  # as dispatch.broker_kept_marker: a missing marker is left again
+        was, broker["marker"] = broker["marker"], True
+        return was
+
+    def sleep(seconds: float) -> None:
+        _Clock.sleep(clock, seconds)
+        if clock.now >= 120 and not broker["restarted"]:  # Redis restarted without persistence at t=120
+            broker.update(marker=False, restarted=True)
+
+    monkeypatch.setattr(clock, "sleep", sleep)
+    monkeypatch.setattr(dispatch, "held_tasks", lambda: ({}, {"cpu": 3}))
+    monkeypatch.setattr(dispatch, "broker_kept_marker", kept)
+    monkeypatch.setattr(reconcile, "find_and_requeue", lambda *, session, liveness, broker_lost:
+                        passes.append((clock.now, broker_lost)) or reconcile.Resend())
+    monkeypatch.setattr(service, "time", clock)
+    monkeypatch.setattr(settings, "broker_url", "redis://127.0.0.1:1/0")
+    CliRunner().invoke(service.reconcile, ["--every", "15"])
+    # The first pass only leaves the marker; the loss at t=120 is seen by the watch at t=121 and acted on at once,
+    # then passes are 15 s apart again.
+    assert passes == [(100, False), (115, False), (121, True), (136, False)]

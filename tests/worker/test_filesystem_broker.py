@@ -1,0 +1,29 @@
+"""The embedded broker serves a queue by priority, lowest number first, then in the order sent (as Redis does)."""
+
+from __future__ import annotations
+
+from kombu import Connection
+
+
+def test_a_resent_run_is_read_before_the_runs_queued_earlier(tmp_path):
+    import worker.celery_app  # noqa: F401 - makes filesystem:// this project's transport
+    from grader.dispatch import NEW_PRIORITY, REQUEUED_PRIORITY, RERUN_PRIORITY
+    from worker.filesystem_broker import Transport
+
+    folder = str(tmp_path)
+    options = {"data_folder_in": folder, "data_folder_out": folder, "control_folder": str(tmp_path / "control")}
+    with Connection("filesystem://", transport_options=options) as connection:
+        assert isinstance(connection.transport, Transport)
+        queue = connection.SimpleQueue("cpu")
+        for body, priority in (("new 1", NEW_PRIORITY), ("requeued", REQUEUED_PRIORITY), ("new 2", NEW_PRIORITY),
+                               ("rerun", RERUN_PRIORITY), ("new 3", NEW_PRIORITY)):
+            queue.put(body, priority=priority)
+        connection.SimpleQueue("grade").put("a grade task")
+        assert queue.qsize() == 5  # kombu still counts (and purges) a queue's files by the name after the first dot
+        read = []
+        for _ in range(5):
+            message = queue.get(timeout=1)
+            read.append(message.payload)
+            message.ack()
+        assert read == ["rerun", "requeued", "new 1", "new 2", "new 3"]
+        assert connection.SimpleQueue("grade").get(timeout=1).payload == "a grade task"

@@ -1,0 +1,53 @@
+"""A worker starting on a host where a worker was killed re-sends the dead processes' runs first, before consuming."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from tests.factories import create_people, reference_sheet
+
+
+def test_a_starting_worker_resends_the_runs_of_dead_processes_on_its_host_ahead_of_the_queue(tmp_path, monkeypatch):
+    from grader import crud, sheets
+    from grader.core import lifecycle
+    from grader.core.db import make_engine, migrate
+    from grader.models import CaseRun, Event, User, utcnow
+    from grader.settings import settings
+    from worker import tasks
+
+    url = f"sqlite:///{tmp_path / 'grader.db'}"
+    migrate(url)
+    monkeypatch.setattr(settings, "database_url", url)
+    gone = subprocess.Popen(["true"])
+    gone.wait()
+    engine = make_engine(url)
+    with Session(engine) as session:
+        create_people(session, course="l03", other_course="other")
+        sheet = reference_sheet()
+        submission = crud.create_submission(session=session, student=session.scalar(select(User).filter_by(name="alice")),
+                                            lesson="L03", sheet=sheet, force_rerun=False,
+                                            specs=sheets.cases_to_run(sheets.parse_sheet(sheet)))
+        session.flush()
+        killed, alive, elsewhere = submission.case_runs[:3]
+        for run, host, pid in ((killed, lifecycle.HOST, gone.pid), (alive, lifecycle.HOST, os.getpid()),
+                               (elsewhere, "another-host", gone.pid)):
+            run.status, run.worker, run.worker_pid, run.started_at, run.tries = "running", host, pid, utcnow(), 1
+        session.commit()
+        ids = killed.id, alive.id, elsewhere.id
+    sent = []
+    monkeypatch.setattr(tasks.run_case_run, "apply_async", lambda **kwargs: sent.append(kwargs))
+
+    tasks._rerun_what_died_here()
+
+    assert sent == [{"args": [ids[0], 2], "queue": "cpu", "priority": lifecycle.RERUN_PRIORITY}]
+    with Session(engine) as session:
+        runs = {run.id: run for run in session.scalars(select(CaseRun).where(CaseRun.id.in_(ids)))}
+        assert (runs[ids[0]].status, runs[ids[0]].attempt, runs[ids[0]].worker) == ("queued", 2, None)
+        assert [(r.status, r.attempt) for r in (runs[ids[1]], runs[ids[2]])] == [("running", 1)] * 2  # alive; unknowable
+        event = session.scalars(select(Event).where(Event.case_run_id == ids[0])).all()[-1]
+        assert event.state == "requeued" and "seen by a worker starting there" in event.detail
+    engine.dispose()
