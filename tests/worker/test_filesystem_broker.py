@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 from kombu import Connection
 
 
@@ -27,3 +29,28 @@ def test_a_resent_run_is_read_before_the_runs_queued_earlier(tmp_path):
             message.ack()
         assert read == ["rerun", "requeued", "new 1", "new 2", "new 3"]
         assert connection.SimpleQueue("grade").get(timeout=1).payload == "a grade task"
+
+
+def test_a_message_file_appears_only_once_written(tmp_path, monkeypatch):
+    """A reader lists the folder and takes any '<x>.<queue>.msg' it finds: a message must never be visible under
+    that name before its bytes are in it (the benchmark saw a worker die on an empty file it read mid-write)."""
+    import builtins
+
+    import worker.filesystem_broker as broker
+
+    opened_for_writing = []
+
+    def spy(path, mode="r", *args, **kwargs):
+        if "w" in mode:
+            opened_for_writing.append(os.path.basename(path))
+        return builtins.open(path, mode, *args, **kwargs)
+
+    monkeypatch.setattr(broker, "open", spy, raising=False)
+    folder = str(tmp_path)
+    options = {"data_folder_in": folder, "data_folder_out": folder, "control_folder": str(tmp_path / "control")}
+    with Connection(transport=broker.Transport, transport_options=options) as connection:
+        queue = connection.SimpleQueue("written")
+        queue.put({"case": "N1"})
+        assert opened_for_writing and not any(name.endswith(".msg") for name in opened_for_writing)
+        assert [name for name in os.listdir(folder) if name.endswith(".part")] == []
+        assert queue.get(timeout=1).payload == {"case": "N1"}
