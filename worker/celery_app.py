@@ -8,7 +8,10 @@ Worker commands (one per queue; concurrency 1 because each slot holds a ~0.8 GB 
 
 Embedded broker (no server): kombu's filesystem transport under DATA_DIR/broker. Measured on the 2-core dev machine
 (20 no-op tasks, one solo worker): filesystem median 0.21 s / max 0.42 s from send to start; the SQLAlchemy
-transport on SQLite median 0.64 s / max 1.87 s (it polls once a second and takes no polling option). Both restore
+transport on SQLite median 0.64 s / max 1.87 s (it polls once a second and takes no polling option). A worker with
+prefetch 1 fetches its next task only at the next poll, so each task costs up to one polling interval: at 0.2 s a
+fully reused submission (10 tasks) spent ~2 s waiting on polls, so the filesystem broker polls every 0.05 s (a
+listdir of a small folder; `grader bench --only submission` shows the effect). Both restore
 a rejected message (worker process lost) and lose unacked messages only if the whole worker dies, which the
 reconciler covers. Deployment uses Redis (BROKER_URL=redis://...).
 """
@@ -29,6 +32,9 @@ from grader.settings import settings
 TRANSPORT_ALIASES["filesystem"] = "worker.filesystem_broker:Transport"
 
 
+BROKER_POLL_S = 0.05
+
+
 def transport_options(url: str) -> dict:
     """Per-transport options: kombu passes SQLAlchemy-transport options to create_engine, so none go there."""
     if url.startswith("redis"):
@@ -40,7 +46,7 @@ def transport_options(url: str) -> dict:
         # control_folder defaults to ./control, relative to whatever directory a process started in.
         return {"data_folder_in": str(folder), "data_folder_out": str(folder), "store_processed": False,
                 "processed_folder": str(folder / "processed"), "control_folder": str(folder / "control"),
-                "polling_interval": 0.2}
+                "polling_interval": BROKER_POLL_S}
     return {}
 
 
