@@ -29,6 +29,7 @@ from sqlalchemy.orm import Session
 from grader.models import CaseRun, Event, Grade, Submission, utcnow
 from tests import services
 from tests.factories import create_people, reference_sheet
+from tests.integration.helpers import wait_until
 from tests.private_services import PrivatePostgres, PrivateRedis
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
@@ -99,12 +100,7 @@ class Db:
         return self.read(lambda s: s.scalars(query).all())
 
     def wait(self, predicate, what: str, limit_s: float = LOAD_LIMIT_S):
-        deadline = time.monotonic() + limit_s
-        while not (value := predicate()):
-            if time.monotonic() > deadline:
-                raise AssertionError(f"gave up waiting for {what}")
-            time.sleep(0.2)
-        return value
+        return wait_until(predicate, what, limit_s)
 
 
 def _mid_case(db: Db, worker_pid: int, artifacts: Path) -> CaseRun | None:
