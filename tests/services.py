@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
+from pathlib import Path
 
 import pytest
 
@@ -17,10 +19,24 @@ from grader.benchmark.stack import postgres_database as _postgres_database
 from tests.factories import ROOT
 
 __all__ = ["PG_ADMIN_URL", "REDIS_URL", "ROOT", "STARTUP_LIMIT_S", "children", "free_port", "postgres_database",
-           "redis_client", "start_api", "start_worker", "stop", "unavailable"]
+           "private_kernel_cache", "redis_client", "start_api", "start_worker", "stop", "unavailable"]
 
 PG_ADMIN_URL = os.environ.get("TEST_POSTGRES_URL", "postgresql+psycopg2://postgres@127.0.0.1:5432/test")
 REDIS_URL = os.environ.get("TEST_REDIS_URL", "redis://127.0.0.1:6379/11")
+
+
+def private_kernel_cache(folder: Path) -> dict[str, str]:
+    """Environment for Genesis processes a test may SIGKILL: a copy of the machine's kernel cache.
+
+    quadrants (Genesis' kernel compiler) guards its cache with a lock file. A process killed while holding it leaves
+    the file behind, and from then on every Genesis process on the machine compiles its kernels anew (~100 s each,
+    far more on a loaded machine) until someone deletes it: seen here after a SIGKILL mid-case, when a whole test
+    suite slowed to a crawl. Killed processes get their own copy, so the machine's cache is never left locked."""
+    source = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "quadrants" / "qdcache"
+    target = folder / "qdcache"
+    if source.is_dir():
+        shutil.copytree(source, target, ignore=shutil.ignore_patterns("*.lock"))
+    return {"QD_OFFLINE_CACHE_FILE_PATH": str(target)}
 
 
 def unavailable(what: str, exc: Exception):

@@ -52,6 +52,7 @@ def stack(tmp_path_factory):
                    CASE_TIME_LIMIT_S="600", PYTHONPATH=str(services.ROOT),
                    # One session submits as alice far more often than a student would; the limit has its own test.
                    RATE_LIMIT_SUBMISSIONS="1000/minute")
+        env |= services.private_kernel_cache(data_dir)  # test_recovery SIGKILLs this stack's case processes
         port = services.free_port()
         api = services.start_api(env, port, logs / "api.log")
         worker = services.start_worker(env, "cpu,grade", logs / "worker-cpu.log")

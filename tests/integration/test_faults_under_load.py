@@ -219,7 +219,7 @@ def test_faults_under_load_on_redis_and_postgres(tmp_path):
         # The shipped settings, except the per-token submission rate: one test is a whole class at the deadline.
         env = {k: v for k, v in os.environ.items() if not k.endswith(("_S", "_URL"))} | dict(
             DATABASE_URL=postgres.url, BROKER_URL=redis.url, DATA_DIR=str(data_dir), PYTHONPATH=str(services.ROOT),
-            RATE_LIMIT_SUBMISSIONS="1000/minute")
+            RATE_LIMIT_SUBMISSIONS="1000/minute") | services.private_kernel_cache(tmp_path)
         artifacts = data_dir / "artifacts"
         port = services.free_port()
         procs.append(services.start_api(env, port, logs / "api.log"))
@@ -311,7 +311,8 @@ def test_faults_on_the_embedded_default(tmp_path):
 
     data_dir = tmp_path / "data"
     env = {k: v for k, v in os.environ.items() if not k.endswith(("_S", "_URL")) and k != "ARTIFACTS_DIR"} | dict(
-        DATA_DIR=str(data_dir), PYTHONPATH=str(services.ROOT), PYTHONUNBUFFERED="1")
+        DATA_DIR=str(data_dir), PYTHONPATH=str(services.ROOT), PYTHONUNBUFFERED="1"
+    ) | services.private_kernel_cache(tmp_path)
     port = services.free_port()
     out = tmp_path / "grader-run.log"
     service = subprocess.Popen([sys.executable, "-m", "grader.cli", "run", "--port", str(port)], cwd=services.ROOT,
