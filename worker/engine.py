@@ -22,6 +22,7 @@ from rubric import ContactCase, FrictionCase
 from rubric.results import RUNNER_VERSION
 
 from .errors import EXIT_OK, EXIT_PROVENANCE, EXIT_RENDER, ProvenanceError, RenderError
+from .kernel_cache import remove_stale_lock
 
 # Requested backend -> the Genesis backend asked for explicitly. Never gs.gpu: in 1.3.3 it falls back to CPU
 # with only a warning (genesis/__init__.py, init).
@@ -33,6 +34,8 @@ _state: dict = {"key": None, "import_s": 0.0, "init_s": 0.0}
 def ensure_genesis(backend: str, precision: str, seed: int):
     """Genesis initialised for exactly this (backend, precision, seed), re-initialising a warm process if needed."""
     t0 = time.perf_counter()
+    if _state["key"] is None:
+        remove_stale_lock()
     import genesis as gs
 
     if _state["key"] is None:
