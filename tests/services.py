@@ -13,13 +13,14 @@ from pathlib import Path
 
 import pytest
 
-from grader.benchmark.processes import STARTUP_LIMIT_S, children, free_port, start_api, start_worker, stop
+from grader.benchmark.processes import STARTUP_LIMIT_S, children, free_port, start_api, start_worker, stop, wait_for
 from grader.benchmark.stack import ServiceUnavailable
 from grader.benchmark.stack import postgres_database as _postgres_database
 from tests.factories import ROOT
 
 __all__ = ["PG_ADMIN_URL", "REDIS_URL", "ROOT", "STARTUP_LIMIT_S", "children", "free_port", "postgres_database",
-           "private_kernel_cache", "redis_client", "start_api", "start_worker", "stop", "unavailable"]
+           "private_kernel_cache", "redis_client", "start_api", "start_worker", "stop", "unavailable",
+           "wait_for"]
 
 PG_ADMIN_URL = os.environ.get("TEST_POSTGRES_URL", "postgresql+psycopg2://postgres@127.0.0.1:5432/test")
 REDIS_URL = os.environ.get("TEST_REDIS_URL", "redis://127.0.0.1:6379/11")

@@ -69,7 +69,7 @@ def _start_worker(env: dict, name: str, queues: tuple[str, ...], log: Path, *, h
 
     proc = subprocess.Popen(worker_argv(queues, name=f"{name}@%h", heartbeat=heartbeat), cwd=services.ROOT, env=env,
                             stdout=log.open("ab"), stderr=subprocess.STDOUT, start_new_session=True)
-    services._wait(lambda: " ready." in log.read_text(errors="replace"), "celery worker", proc, log)
+    services.wait_for(lambda: " ready." in log.read_text(errors="replace"), "celery worker", proc, log)
     return proc, utcnow()
 
 
