@@ -20,3 +20,10 @@ def cases_to_run(sheet) -> list:
     import rubric
 
     return list(rubric.cases_to_run(sheet))
+
+
+def checkpoints_only(sheet) -> bool:
+    """A sheet answering concept checkpoints alone: it needs only the lesson's own cases, never a config of its own."""
+    from rubric.sheet import CHECKPOINT_IDS, answered
+
+    return set(answered(sheet)) <= set(CHECKPOINT_IDS)

@@ -26,7 +26,7 @@ from ..metrics import ContactMetrics, FrictionMetrics, LaneMetrics
 from ..one_factor import ConfigFinding, one_factor_findings
 from ..results import CaseResult
 from ..rubrics import Item, Rubric, load_rubric, version_key
-from ..sheet import CHECKPOINT_IDS, PredictionSheet, answered
+from ..sheet import PredictionSheet, answered
 
 Verdict = Literal["credit", "no_credit", "inconclusive", "one_factor_violation", "not_measured"]
 SHEET_CASE_PREFIX = "sheet."
@@ -106,11 +106,10 @@ def cases_to_run(sheet: PredictionSheet, rubric: Rubric | None = None) -> list:
     """Every case grading needs: lesson cases not replaced by the sheet, plus its configs that obey the one-factor
     rule (a config that breaks it is graded as such, never run as if valid). Unique names.
 
-    A sheet of concept checkpoints only needs no case: it is graded at once on measurements already stored (the
-    lesson's own cases, reused by content key), never by queueing runs."""
+    A sheet of concept checkpoints only submits no config, so it needs the lesson's own cases alone: the same runs for
+    every student, which the service reuses by content key (grader.assignments.lesson_runs: the API grades such a sheet at
+    once where all are stored, and queues them only while one was never measured)."""
     rubric = rubric or load_rubric(sheet.lesson)
-    if set(answered(sheet)) <= set(CHECKPOINT_IDS):
-        return []
     findings = one_factor_findings(sheet, rubric)
     specs = {}
     for name in LESSON_RUNS:

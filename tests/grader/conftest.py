@@ -42,3 +42,15 @@ def api(tmp_path, monkeypatch):
     yield state
     db.get_engine().dispose()
     db._engine = None
+
+
+@pytest.fixture
+def lesson_measured(api, measured) -> dict[str, int]:
+    """The lesson's own cases, really measured (the session's `measured` runs), stored as done for a submission of
+    another course's instructor: the lesson's cases are the same for every course and student, so a checkpoint sheet
+    is graded at once on them. Their case run ids by name."""
+    from grader.core.db import new_session
+    from tests.factories import store_lesson_runs
+
+    with new_session() as session:
+        return store_lesson_runs(session, measured, by="eve")

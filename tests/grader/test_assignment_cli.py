@@ -6,6 +6,7 @@ import stat
 
 from grader.client import Client
 from tests.grader.test_assignments import ROSTER, at, create, submit
+from tests.grader.test_assignments import lesson_cases_stored  # noqa: F401 - autouse: the lesson measured
 
 
 def client_on(url, token):
@@ -54,11 +55,11 @@ def test_release_extend_and_grades(api, monkeypatch, tmp_path):
     assert submit(api, aid).status_code == 202
     table = run(api, monkeypatch, "assignment", "grades", str(aid))
     assert table.exit_code == 0, table.output
-    assert table.output.splitlines()[1].split()[:5] == ["alice", "3.6", "4", "10%", "1"]
+    assert table.output.splitlines()[1].split()[:5] == ["alice", "7.2", "8", "10%", "1"]
     out = tmp_path / "grades.csv"
     written = run(api, monkeypatch, "assignment", "grades", str(aid), "--csv", str(out))
     assert written.exit_code == 0 and "1 students written" in written.output
-    assert out.read_text().splitlines()[1].startswith("alice,3.6,4,8,0.1,")
+    assert out.read_text().splitlines()[1].startswith("alice,7.2,8,8,0.1,")
     released = run(api, monkeypatch, "assignment", "release", str(aid))
     assert released.exit_code == 0 and "released at 20" in released.output
     refused = run(api, monkeypatch, "assignment", "grades", str(aid), who="alice")

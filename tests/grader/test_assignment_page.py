@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from tests.grader.test_assignments import at, checkpoint_sheet, create, submit
+from tests.grader.test_assignments import lesson_cases_stored  # noqa: F401 - autouse: the lesson measured
 
 
 @pytest.fixture
@@ -31,14 +32,14 @@ def test_the_page_shows_settings_students_attempts_lateness_and_counted_grades(a
     text = page.text
     assert "Checkpoints week 3" in text and "10% per started day" in text and "the best counts" in text
     assert "not released yet" in text and "on release <span class=\"muted\">(own setting)" in text
-    # alice: two attempts, both a day and some hours late (2 days charged), the first counts: 4 less 20% is 3.2.
+    # alice: two attempts, both a day and some hours late (2 days charged), the first counts: 8 less 20% is 6.4.
     assert f'id="attempt-{first["id"]}" class="counts"' in text and f'id="attempt-{second["id"]}">' in text
-    assert "1 d 2 h late (2 days charged)" in text and "<strong>3.2</strong>" in text and "−20%" in text
+    assert "1 d 2 h late (2 days charged)" in text and "<strong>6.4</strong>" in text and "−20%" in text
     # bob: his extension, who granted it, on time; carol: on the roster, no attempt.
     assert "<strong>extension</strong>" in text and "granted by prof" in text and "on time" in text
     assert 'id="student-carol"' in text and "Carol Shaw" in text and "no attempt yet" in text
     csv = api.client.get(f"/assignments/{aid}/grades.csv", headers=api.as_("prof"))
-    assert csv.status_code == 200 and csv.text.splitlines()[1].startswith("alice,3.2,4,8,0.2,")
+    assert csv.status_code == 200 and csv.text.splitlines()[1].startswith("alice,6.4,8,8,0.2,")
 
 
 @pytest.mark.parametrize("who", ["alice", "tess", "eve"])
@@ -56,7 +57,7 @@ def test_the_dashboard_shows_each_assignments_counted_grades_and_links_its_page(
     (assignment,) = data["assignments"]
     assert assignment["page"] == f"/assignments/{aid}"
     assert [(g["student"], g["counted_score"], g["raw_score"], g["penalty"]) for g in assignment["grades"]] == [
-        ("alice", 3.2, 4, 0.2), ("bob", 4, 4, 0)]
+        ("alice", 6.4, 8, 0.2), ("bob", 8, 8, 0)]
     page = api.client.get("/courses/l03/dashboard", headers=api.as_("prof")).text
     assert f'<a href="/assignments/{aid}">#{aid} Checkpoints week 3</a>' in page
-    assert f'id="assignment-{aid}-grades"' in page and "3.2 / 8" in page
+    assert f'id="assignment-{aid}-grades"' in page and "6.4 / 8" in page

@@ -7,6 +7,7 @@ import re
 import pytest
 
 from tests.grader.test_assignments import assignment_count, at, checkpoint_sheet, create, submit
+from tests.grader.test_assignments import lesson_cases_stored  # noqa: F401 - autouse: the lesson measured
 
 
 def test_item_visibility_must_name_items_of_the_assignment_nothing_stored(api):
@@ -90,17 +91,17 @@ def test_each_submission_says_its_raw_penalty_counted_score_and_whether_it_count
     worse = checkpoint_sheet()
     worse["answers"]["C2"]["reason"] = "it_is_valid"
     second = submit(api, aid, sheet=worse).json()
-    assert (first["raw_score"], first["penalty"], first["counted_score"], first["counts"]) == (4, 0.25, 3, True)
-    assert (second["raw_score"], second["counted_score"], second["counts"]) == (3, 2.25, False)
+    assert (first["raw_score"], first["penalty"], first["counted_score"], first["counts"]) == (8, 0.25, 6, True)
+    assert (second["raw_score"], second["counted_score"], second["counts"]) == (7, 5.25, False)
     listed = {s["id"]: s["counts"] for s in api.client.get("/v1/submissions", headers=api.as_("alice")).json()}
     assert listed == {first["id"]: True, second["id"]: False}
     # The student's pages say the same: each attempt, which one counts, the lateness and the penalty taken.
     page = api.client.get("/submissions", headers=api.as_("alice")).text
     assert "Checkpoints, attempt 1 <span class=\"counts-badge\">counts</span>" in page
     assert "attempt 2 <span class=\"muted\">(another attempt counts)</span>" in page
-    assert "2 h late (1 day charged) · late penalty −25%, counted 3<" in page
+    assert "2 h late (1 day charged) · late penalty −25%, counted 6<" in page
     report = api.client.get(f"/submissions/{second['id']}", headers=api.as_("alice")).text
-    assert 'id="attempt">Assignment <span class="attempt">Checkpoints, attempt 2' in report and "counted 2.25" in report
+    assert 'id="attempt">Assignment <span class="attempt">Checkpoints, attempt 2' in report and "counted 5.25" in report
 
 
 def test_submissions_past_the_hourly_limit_get_429_with_retry_after_naming_the_rule(api):
@@ -115,7 +116,7 @@ def test_submissions_past_the_hourly_limit_get_429_with_retry_after_naming_the_r
     assert submit(api, aid, who="bob").status_code == 202  # counted per student
     from tests.grader.test_assignments import stored
 
-    assert stored() == (3, 0)
+    assert stored() == (3, 3 * 7)  # each graded on the 7 lesson cases, reused
 
 
 def test_the_hourly_limit_is_checked_against_the_last_60_minutes(api):

@@ -123,10 +123,24 @@ def submit(api, assignment_id, who="alice", sheet=None):
                                                     "assignment_id": assignment_id}, headers=api.as_(who))
 
 
-def stored() -> tuple[int, int]:
-    from tests.grader.test_api_submissions import counts
+@pytest.fixture(autouse=True)
+def lesson_cases_stored(request):
+    """Checkpoint sheets here are graded on the lesson's cases as really measured and stored (tests marked
+    `lesson_unmeasured` see a service where none was measured yet)."""
+    if request.node.get_closest_marker("lesson_unmeasured") is None:
+        request.getfixturevalue("lesson_measured")
 
-    return counts()
+
+def stored() -> tuple[int, int]:
+    """Submissions and case runs stored in course l03 (the lesson's measured cases belong to another course's)."""
+    from grader.core.db import new_session
+    from grader.models import CaseRun, Course, Submission
+
+    with new_session() as session:
+        course = select(Course.id).where(Course.name == "l03").scalar_subquery()
+        return (session.scalar(select(func.count()).select_from(Submission).where(Submission.course_id == course)),
+                session.scalar(select(func.count()).select_from(CaseRun).join(Submission)
+                               .where(Submission.course_id == course)))
 
 
 def refused(response, *words: str) -> None:
@@ -135,7 +149,7 @@ def refused(response, *words: str) -> None:
     assert err["field"] == "assignment_id" and all(w in err["rule"] for w in words), err
 
 
-def test_a_checkpoint_submission_runs_no_case_and_is_graded_at_once_on_its_items_only(api):
+def test_a_checkpoint_submission_runs_no_case_and_is_graded_at_once_on_its_items_only(api, lesson_measured):
     import time
 
     aid = create(api).json()["id"]
@@ -144,14 +158,49 @@ def test_a_checkpoint_submission_runs_no_case_and_is_graded_at_once_on_its_items
     assert time.perf_counter() - started < 1.0
     assert response.status_code == 202, response.text
     row = response.json()
-    assert (row["status"], row["attempt"], row["late_seconds"], row["progress"]["total"]) == ("graded", 1, 0, 0)
-    assert api.sent == [] and stored() == (1, 0)
+    assert (row["status"], row["attempt"], row["late_seconds"]) == ("graded", 1, 0)
+    # Nothing run or queued: each lesson case is recorded as reusing its stored measurement.
+    assert row["progress"]["total"] == row["progress"]["done"] == len(lesson_measured)
+    assert api.sent == [] and stored() == (1, len(lesson_measured))
+    runs = api.client.get(f"/v1/submissions/{row['id']}/case-runs", headers=api.as_("alice")).json()
+    assert {r["name"]: r["reused_from_id"] for r in runs} == lesson_measured
     grade = api.client.get(f"/v1/submissions/{row['id']}/grade", headers=api.as_("alice")).json()
     assert [i["id"] for i in grade["items"]] == ["C1", "C2", "C3", "C4", "C5", "C6", "C7", "C8"]
     assert grade["max_total"] == 8  # the other 22 points of the sheet are not this assignment's
-    # No lesson case was ever measured in this database: the measured checkpoints say so, the conceptual ones score.
-    verdicts = {i["id"]: i["verdict"] for i in grade["items"]}
-    assert verdicts["C2"] == "credit" and verdicts["C1"] == "not_measured"
+    # Graded on the lesson's cases as stored: the measured checkpoints read them, and the reference answers score all.
+    assert {i["id"]: i["verdict"] for i in grade["items"]} == dict.fromkeys(grade_ids(grade), "credit")
+    items = {i["id"]: i for i in grade["items"]}
+    assert items["C1"]["backends"] == {"N4": "cpu"} and items["C5"]["backends"] == {"friction-baseline": "cpu"}
+    events = api.client.get(f"/v1/submissions/{row['id']}/events", headers=api.as_("prof")).json()
+    assert "no case run" in next(e["detail"] for e in events if e["state"] == "graded")
+
+
+def grade_ids(grade) -> list[str]:
+    return [i["id"] for i in grade["items"]]
+
+
+@pytest.mark.lesson_unmeasured
+def test_a_checkpoint_submission_on_a_service_that_never_measured_the_lesson_queues_its_cases(api):
+    """Nothing counted against the student for a measurement the service lacks: the lesson's cases are queued for
+    this submission (the worker runs them once, every later checkpoint sheet reuses them) and it is graded after."""
+    from rubric.scoring import LESSON_RUNS
+
+    aid = create(api).json()["id"]
+    row = submit(api, aid).json()
+    assert row["status"] != "graded" and row["total"] is None
+    assert row["progress"]["total"] == len(api.sent) == len(LESSON_RUNS) and stored() == (1, len(LESSON_RUNS))
+    assert api.client.get(f"/v1/submissions/{row['id']}/grade", headers=api.as_("prof")).status_code == 409  # not yet
+
+
+def test_a_checkpoint_submission_with_one_lesson_case_missing_queues_the_lessons_cases(api, lesson_measured):
+    from grader.core.db import new_session
+    from grader.models import CaseRun
+
+    with new_session() as session:  # friction-baseline's only valid run failed after all
+        session.get(CaseRun, lesson_measured["friction-baseline"]).result_status = "failed"
+        session.commit()
+    row = submit(api, create(api).json()["id"]).json()
+    assert row["status"] != "graded" and row["progress"]["total"] == len(api.sent) == len(lesson_measured)
 
 
 def test_answers_outside_the_assignment_are_refused_naming_them(api):
@@ -186,7 +235,7 @@ def test_before_open_after_close_and_beyond_attempts_are_refused_with_the_rule_a
     limited = create(api, max_attempts=2).json()
     assert [submit(api, limited["id"]).json()["attempt"] for _ in range(2)] == [1, 2]
     refused(submit(api, limited["id"]), "allows 2 attempts", "2 already submitted")
-    assert stored() == (2, 0)
+    assert stored() == (2, 2 * 7)  # each graded on the 7 lesson cases, reused
     assert submit(api, limited["id"], who="bob").json()["attempt"] == 1  # attempts are counted per student
 
 
@@ -245,13 +294,13 @@ def test_a_late_attempt_is_penalized_per_day_and_the_export_shows_raw_beside_cou
     sub = submit(api, aid).json()
     assert submit(api, aid, who="bob").status_code == 202
     (alice, bob) = grades_csv(api, aid)
-    assert (alice["student"], alice["raw_score"], alice["penalty"], alice["counted_score"]) == ("alice", "4", "0.1",
-                                                                                                 "3.6")
+    assert (alice["student"], alice["raw_score"], alice["penalty"], alice["counted_score"]) == ("alice", "8", "0.1",
+                                                                                                 "7.2")
     assert (alice["attempt"], alice["submission_id"], alice["max_score"]) == ("1", str(sub["id"]), "8")
     assert alice["submitted_at_utc"].endswith("+00:00") and int(alice["late_seconds"]) >= 7200
     assert bob["student"] == "bob"
     listed = api.client.get(f"/v1/assignments/{aid}/grades", headers=api.as_("prof")).json()
-    assert listed[0]["counted_score"] == 3.6 and listed[0]["raw_score"] == 4
+    assert listed[0]["counted_score"] == 7.2 and listed[0]["raw_score"] == 8
 
 
 def test_the_penalty_counts_each_started_day_and_stops_at_the_cap():
@@ -263,7 +312,7 @@ def test_the_penalty_counts_each_started_day_and_stops_at_the_cap():
     assert penalty_fraction(Assignment(late_penalty_per_day=0.5, late_penalty_cap=None), 10 * 86400) == 1.0
 
 
-@pytest.mark.parametrize("counted, attempt, raw", [("latest", "2", "3"), ("best", "1", "4")])
+@pytest.mark.parametrize("counted, attempt, raw", [("latest", "2", "7"), ("best", "1", "8")])
 def test_the_counted_attempt_is_the_latest_or_the_best(api, counted, attempt, raw):
     aid = create(api, counted_attempt=counted).json()["id"]
     assert submit(api, aid).status_code == 202
@@ -278,38 +327,6 @@ def test_only_instructors_export(api):
     aid = create(api).json()["id"]
     for who, status in (("alice", 403), ("tess", 403), ("eve", 404)):
         assert api.client.get(f"/v1/assignments/{aid}/grades.csv", headers=api.as_(who)).status_code == status
-
-
-def test_a_checkpoint_sheet_is_graded_on_the_lesson_cases_already_stored(api):
-    """C1 reads N4 as measured for an earlier submission (bob's); nothing is run for alice's checkpoint sheet."""
-    from rubric import BASELINE_CASES
-    from rubric.metrics import contact_metrics
-
-    from grader.core.db import new_session
-    from grader.models import CaseRun
-    from grader.settings import settings
-    from tests.factories import contact_arrays, provenance, reference_sheet, write_case_folder
-
-    earlier = api.client.post("/v1/submissions", json={"sheet": reference_sheet()}, headers=api.as_("bob")).json()
-    n4 = BASELINE_CASES["N4"]
-    arrays = contact_arrays(n=n4.n_steps, dt=n4.dt)
-    folder = settings.artifacts_dir / "n4"
-    folder.mkdir(parents=True)
-    write_case_folder(folder, arrays, provenance(n4))
-    with new_session() as session:
-        run = session.query(CaseRun).filter_by(submission_id=earlier["id"], name="N4").one()
-        run.status, run.result_status, run.artifact_dir = "done", "ok", str(folder)
-        run.provenance = provenance(n4)
-        run.metrics = contact_metrics(n4, arrays).model_dump(mode="json")
-        session.commit()
-    api.sent.clear()
-    aid = create(api).json()["id"]
-    row = submit(api, aid).json()
-    assert row["status"] == "graded" and row["progress"]["total"] == 0 and api.sent == []
-    items = {i["id"]: i for i in api.client.get(f"/v1/submissions/{row['id']}/grade", headers=api.as_("alice")).json()["items"]}
-    assert items["C1"]["verdict"] == "credit", items["C1"]["feedback"]
-    assert items["C1"]["backends"] == {"N4": "cpu"}
-    assert items["C5"]["verdict"] == "not_measured"  # friction-baseline was never measured here
 
 
 @pytest.mark.parametrize("visibility", ["after_due", "on_release"])
@@ -327,7 +344,7 @@ def test_scores_and_feedback_are_withheld_from_the_student_until_visible(api, vi
     assert page.status_code == 200 and "C2" not in page.text and "credit" not in page.text
     assert api.client.get(f"/submissions/{sid}/results.json", headers=api.as_("alice")).status_code == 404
     # Staff see it all along.
-    assert api.client.get(f"/v1/submissions/{sid}/grade", headers=api.as_("prof")).json()["total"] == 4
+    assert api.client.get(f"/v1/submissions/{sid}/grade", headers=api.as_("prof")).json()["total"] == 8
     assert "C2" in api.client.get(f"/submissions/{sid}", headers=api.as_("prof")).text
     if visibility == "on_release":
         assert api.client.post(f"/v1/assignments/{aid}/release", headers=api.as_("alice")).status_code == 403
@@ -337,7 +354,7 @@ def test_scores_and_feedback_are_withheld_from_the_student_until_visible(api, vi
         api.client.post(f"/v1/assignments/{aid}/extensions", headers=api.as_("prof"),
                         json={"student": "alice", "due_at": at(hours=-1), "hard_close_at": at(1)})
     grade = api.client.get(f"/v1/submissions/{sid}/grade", headers=api.as_("alice"))
-    assert grade.status_code == 200 and grade.json()["total"] == 4
+    assert grade.status_code == 200 and grade.json()["total"] == 8
 
 
 ROSTER = "student_id,name,email\ns1001,Ada Lovelace,ada@example.edu\ns1002,Alan Turing,alan@example.edu\n"
@@ -403,4 +420,4 @@ def test_two_submissions_racing_for_one_attempt_number_let_one_in(api, monkeypat
     # The second request counted its attempts before the first one committed: both think they are attempt 1.
     monkeypatch.setattr(assignments, "attempts_used", lambda **_: 0)
     refused(submit(api, aid), "attempt 1 of assignment", "was just taken")
-    assert stored() == (1, 0)
+    assert stored() == (1, 7)

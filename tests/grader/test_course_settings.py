@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from tests.grader.test_assignments import at, create, refused, submit
+from tests.grader.test_assignments import lesson_cases_stored  # noqa: F401 - autouse: the lesson measured
 
 
 def patch(api, body, who="prof", course="l03"):

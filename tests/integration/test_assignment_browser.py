@@ -1,6 +1,7 @@
 """The instructor's assignment page in a real browser (Debian's chromium driven by Playwright) over the API on
-loopback with PostgreSQL. Checkpoint sheets are graded in the request, so no worker and no Genesis run is needed.
-The screenshot lands in out/screenshots/ (or $SCREENSHOTS_DIR)."""
+loopback with PostgreSQL. The lesson's own cases are stored as really measured (the session's `measured` runs), so
+checkpoint sheets are graded in the request on them and no worker is needed. The screenshots land in out/screenshots/
+(or $SCREENSHOTS_DIR)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from datetime import UTC, datetime, timedelta
 import pytest
 
 from tests import services
-from tests.factories import create_people
+from tests.factories import create_people, store_lesson_runs
 from tests.grader.test_assignments import checkpoint_sheet
 from tests.integration.helpers import SHOTS, signed_in
 
@@ -31,8 +32,9 @@ class Api:
 
 
 @pytest.fixture(scope="module")
-def api(tmp_path_factory):
-    """The API alone (uvicorn) on a fresh PostgreSQL database; nothing is ever enqueued here."""
+def api(tmp_path_factory, measured):
+    """The API alone (uvicorn) on a fresh PostgreSQL database where the lesson's cases were measured; nothing is ever
+    enqueued here."""
     from sqlalchemy.orm import Session
 
     from grader.core.db import make_engine, migrate
@@ -44,6 +46,7 @@ def api(tmp_path_factory):
         with Session(engine) as session:
             tokens = create_people(session, course=COURSE, other_course="other-course")
             session.commit()
+            store_lesson_runs(session, measured, by="eve")
         engine.dispose()
         env = dict(os.environ, DATABASE_URL=database_url, BROKER_URL=services.REDIS_URL, DATA_DIR=str(data_dir),
                    PYTHONPATH=str(services.ROOT))
@@ -114,5 +117,10 @@ def test_the_instructor_opens_an_assignment_from_the_dashboard_and_reads_every_s
     student.reload()
     assert "pending" not in student.locator("#item-C3").inner_text()
     assert student.locator("#pending").count() == 0
-    assert "counts" in student.inner_text("#attempt") and "counted 3.2" in student.inner_text("#attempt")
+    assert "counts" in student.inner_text("#attempt") and "counted 6.4" in student.inner_text("#attempt")
+    # Graded on the lesson's own cases as already measured: each named in her case runs, reused, nothing run.
+    runs = student.inner_text("#case-runs")
+    assert runs.count("reused measurement of case run") == 7 and "N4" in runs and "friction-baseline" in runs
+    assert "lesson's own cases as already measured" in student.inner_text("#check-line")
+    student.screenshot(path=str(SHOTS / "assignment-student-report-released.png"), full_page=True)
     student.close()

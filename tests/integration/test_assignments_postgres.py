@@ -1,8 +1,8 @@
 """Assignments on real PostgreSQL: the migrations create exactly the models there (and 0008-0006 go down and up
-again), and the acceptance tests of tests/grader/test_assignments.py (checkpoint sheet graded with no case run, hard
-close, attempt limit, late penalty beside the raw score, extension) and test_assignment_visibility.py (an item hidden
-until release then shown with the same score, the hourly limit) run again on the in-process app with DATABASE_URL
-pointed at PostgreSQL."""
+again), and the acceptance tests of tests/grader/test_assignments.py (a checkpoint sheet graded with no case run on the
+lesson's measured cases, or queueing them where none was measured; hard close, attempt limit, late penalty beside the
+raw score, extension) and test_assignment_visibility.py (an item hidden until release then shown with the same score,
+the hourly limit) run again on the in-process app with DATABASE_URL pointed at PostgreSQL."""
 
 from __future__ import annotations
 
@@ -10,10 +10,12 @@ import pytest
 
 from tests import services
 from tests.factories import create_people
-from tests.grader.conftest import Api
+from tests.grader.conftest import Api, lesson_measured  # noqa: F401 - the fixture, for the tests below
 from tests.grader.test_assignments import (  # noqa: F401 - collected here again, against PostgreSQL
-    test_a_checkpoint_sheet_is_graded_on_the_lesson_cases_already_stored,
+    lesson_cases_stored,
+    test_a_checkpoint_submission_on_a_service_that_never_measured_the_lesson_queues_its_cases,
     test_a_checkpoint_submission_runs_no_case_and_is_graded_at_once_on_its_items_only,
+    test_a_checkpoint_submission_with_one_lesson_case_missing_queues_the_lessons_cases,
     test_a_late_attempt_is_penalized_per_day_and_the_export_shows_raw_beside_counted,
     test_an_extension_lets_one_student_submit_after_the_close,
     test_before_open_after_close_and_beyond_attempts_are_refused_with_the_rule_and_time,

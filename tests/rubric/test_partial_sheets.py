@@ -1,4 +1,5 @@
-"""An assignment's part of the sheet: exactly its answers, no case for checkpoints, only its items graded."""
+"""An assignment's part of the sheet: exactly its answers, only the lesson's own cases for checkpoints, only its items
+graded."""
 
 from __future__ import annotations
 
@@ -21,11 +22,20 @@ def test_the_two_parts_make_the_whole_sheet():
     assert {i.id for i in rubric.load_rubric("L03").items if i.part == "checkpoint"} == set(CHECKPOINT_IDS)
 
 
-def test_a_checkpoint_sheet_needs_no_case_and_grades_only_its_items():
+def test_a_checkpoint_sheet_needs_only_the_lessons_own_cases_and_grades_only_its_items(measured):
+    """The cases it lists are all its checks read: graded on those alone, the reference answers get every point."""
+    from rubric.scoring import LESSON_RUNS
+
     sheet = rubric.parse_sheet(part(CHECKPOINT_IDS, configs=False), "checkpoints")
-    assert rubric.cases_to_run(sheet) == []
-    report = rubric.grade_sheet(sheet, {})
+    specs = rubric.cases_to_run(sheet)
+    assert [s.name for s in specs] == list(LESSON_RUNS)
+    assert all(s == rubric.BASELINE_CASES[s.name] for s in specs)  # the lesson's cases, the same for every student
+    report = rubric.grade_sheet(sheet, {s.name: measured[s.name] for s in specs})
     assert [i.id for i in report.items] == list(CHECKPOINT_IDS) and report.max_total == 8
+    assert {i.id: i.verdict for i in report.items} == dict.fromkeys(CHECKPOINT_IDS, "credit")
+    # Without them the measured checkpoints cannot be decided (the service never grades one that way).
+    short = {i.id: i.verdict for i in rubric.grade_sheet(sheet, {}).items}
+    assert short["C1"] == short["C5"] == "not_measured" and short["C2"] == "credit"
 
 
 def test_an_exercise_sheet_runs_its_cases_and_grades_no_checkpoint():

@@ -67,6 +67,13 @@ def create_submission(body: SubmissionCreate, session: SessionDep, user: Current
     if assignment is not None and sheet.lesson != assignment.lesson:
         return error(422, "invalid sheet", [{"field": "sheet.lesson",
                                              "rule": f"assignment {assignment.id} is for lesson {assignment.lesson}"}])
+    stored = None
+    if sheets.checkpoints_only(sheet) and not body.force_rerun:
+        # The lesson's own cases, the same for every student: graded now on those already measured, or queued (and
+        # reused by the worker where stored) while one was never measured, so no student loses a point to a gap.
+        stored = assignments.lesson_runs(session=session, backend=body.backend or "cpu")
+        if all(spec.name in stored for spec in specs):
+            specs = []
     submission = crud.create_submission(session=session, student=user, lesson=sheet.lesson, sheet=body.sheet,
                                         specs=specs, force_rerun=body.force_rerun)
     if assignment is not None:
@@ -77,10 +84,12 @@ def create_submission(body: SubmissionCreate, session: SessionDep, user: Current
         session.rollback()
         return error(409, "submission refused", [{"field": "assignment_id", "rule": (
             f"attempt {attempt} of assignment {assignment.id} was just taken by another submission; submit again")}])
-    if not specs:  # a checkpoint sheet: graded now on stored measurements, nothing queued
-        assignments.grade_now(session=session, submission=submission, sheet=sheet, backend=body.backend or "cpu")
+    if not specs:  # a checkpoint sheet whose lesson cases are all stored: graded now, nothing queued
+        assignments.grade_now(session=session, submission=submission, sheet=sheet, runs=stored)
     session.commit()  # nothing is enqueued before the submission and all its case runs are durable
     for run in submission.case_runs:
+        if run.status != "queued":  # a checkpoint sheet's lesson cases, reused at once
+            continue
         try:
             dispatch.send_case_run(run.id, run.attempt, run.backend)
         except Exception:  # stored and queued in the database: the reconciler re-sends it
