@@ -135,3 +135,27 @@ def test_course_views_and_exports_respect_roles(stack, first):
     assert "friction_compare_friction-baseline_vs_sheet.table_exercise.png" in figures.json()
     png = httpx.get(f"{stack.url}/v1/submissions/{created['id']}/figures/{figures.json()[0]}", headers=student)
     assert png.status_code == 200 and png.content[:4] == b"\x89PNG"
+
+
+def test_a_checkpoint_assignment_is_graded_by_the_worker_on_the_lesson_cases_then_at_once_on_them(stack):
+    """Forced to measure anew, the first checkpoint sheet queues the lesson's cases, the worker runs them and grades
+    it; the next one is graded in its request on exactly those runs, reused, nothing queued."""
+    from datetime import UTC, datetime, timedelta
+
+    from rubric.scoring import LESSON_RUNS
+    from tests.grader.test_assignments import checkpoint_sheet
+
+    now = datetime.now(UTC)
+    aid = stack.client("prof").create_assignment("l03-test", {
+        "title": "Checkpoints", "items": "checkpoints", "open_at": (now - timedelta(hours=1)).isoformat(),
+        "due_at": (now + timedelta(days=1)).isoformat(), "hard_close_at": (now + timedelta(days=2)).isoformat()})["id"]
+    created, final = submit_and_wait(stack, checkpoint_sheet("alice"), assignment_id=aid, force_rerun=True)
+    assert created["status"] != "graded" and created["progress"]["total"] == len(LESSON_RUNS)
+    assert (final["status"], final["total"], final["max_total"]) == ("graded", 8, 8), final
+    measured = {run.name: run for run in case_runs(stack, created["id"])}
+    assert sorted(measured) == sorted(LESSON_RUNS)
+    assert all(r.status == "done" and r.reused_from_id is None and r.actual_backend == "cpu" for r in measured.values())
+    again = stack.client("bob").submit(checkpoint_sheet("bob"), assignment_id=aid)
+    assert (again["status"], again["total"]) == ("graded", 8)
+    assert {r.name: r.reused_from_id for r in case_runs(stack, again["id"])} == {n: r.id for n, r in measured.items()}
+    assert grades_of(stack, again["id"]) == 1
