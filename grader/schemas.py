@@ -196,7 +196,8 @@ class AssignmentCreate(Strict):
     title: str = Field(min_length=1, max_length=128)
     lesson: Literal["L03"] = "L03"
     items: Literal["checkpoints", "exercises", "sheet"] = Field(
-        "sheet", description="checkpoints: the lesson's concept checkpoints only (no case is run); exercises: every "
+        "sheet", description="checkpoints: the lesson's concept checkpoints only (graded on the lesson's own cases, "
+                             "at once where they are stored); exercises: every "
                              "other item (predictions, hands-on, extension); sheet: all items")
     open_at: UtcInput
     due_at: UtcInput

@@ -116,7 +116,12 @@ def submit(sheet_file, url: str, token: str, backend: str | None, force_rerun: b
         created = client.submit(load_sheet(sheet_file), **options)
     except RuntimeError as exc:
         raise click.ClickException(str(exc)) from None
-    click.echo(f"submission {created['id']}: {created['progress']['total']} case runs queued")
+    progress = created["progress"]
+    if created["status"] == "graded":  # a checkpoint sheet on the lesson's cases as already measured
+        click.echo(f"submission {created['id']}: graded at once, no case run ({progress['done']} stored "
+                   f"measurements of the lesson's own cases reused)")
+    else:
+        click.echo(f"submission {created['id']}: {progress['queued']} case runs queued")
     if created["attempt"]:
         from grader.assignments import late_text
 
@@ -124,7 +129,7 @@ def submit(sheet_file, url: str, token: str, backend: str | None, force_rerun: b
                    f"{late_text(created['late_seconds'])}")
     if no_wait:
         return
-    state = follow(client, created["id"], created["progress"]["total"])
+    state = created if created["status"] == "graded" else follow(client, created["id"], progress["total"])
     summary(client, created["id"], state, url)
     if state["status"] != "graded":
         sys.exit(1)
