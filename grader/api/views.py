@@ -21,9 +21,11 @@ def progress(submission: Submission) -> Progress:
 
 def submission_public(submission: Submission, session: Session, user: User | None = None) -> SubmissionPublic:
     """`user`: the caller, whose view leaves out the scores their assignment does not show them yet."""
-    grade = current_grade(session, submission.id)
+    grade = current_grade(session, submission.id, report=False)
     hidden = withheld_items(session=session, submission=submission, user=user, now=utcnow()) if user else {}
-    shown = shown_report(grade.report, hidden) if grade is not None else None
+    shown = None
+    if grade is not None:  # the report is read only when some item is withheld from this caller
+        shown = shown_report(grade.report, hidden) if hidden else {"total": grade.total, "max_total": grade.max_total}
     if shown is not None and len(hidden) == len(shown.get("items", [])) > 0:
         shown = None  # every item withheld: no total at all
     counted = {}

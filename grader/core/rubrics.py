@@ -9,28 +9,41 @@ regrade chose, else under the newest shipped version. A submission's current gra
 from __future__ import annotations
 
 from sqlalchemy import select
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, defer
 
 from grader.models import Grade, Regrade, RubricVersion, User, utcnow
 
 
-def current_grade(session: Session, submission_id: int) -> Grade | None:
-    """The submission's grade that counts (the newest not superseded by a regrade), or None."""
-    return session.scalar(select(Grade).where(Grade.submission_id == submission_id, Grade.superseded_at.is_(None)))
+def current_grade(session: Session, submission_id: int, *, report: bool = True) -> Grade | None:
+    """The submission's grade that counts (the newest not superseded by a regrade), or None. `report=False` leaves
+    its report (the largest JSON stored) to be loaded only if read: decoding it was a third of an API read."""
+    query = select(Grade).where(Grade.submission_id == submission_id, Grade.superseded_at.is_(None))
+    return session.scalar(query if report else query.options(defer(Grade.report)))
 
 
 def grade_history(session: Session, submission_id: int) -> list[Grade]:
     """Every grade a submission ever had, oldest first; the last one is the current one."""
-    return list(session.scalars(select(Grade).where(Grade.submission_id == submission_id).order_by(Grade.id)))
+    return list(session.scalars(select(Grade).where(Grade.submission_id == submission_id).order_by(Grade.id)
+                                .options(defer(Grade.report))))  # totals and dates: the reports load only if read
+
+
+# Stored rubric versions parsed and checked against their hash once per process, by that hash: a stored version's
+# content is never edited, and parsing it with its hash check took ~5 ms of every report page view.
+_PARSED: dict[tuple[str, str, str], object] = {}
 
 
 def _row_rubric(row: RubricVersion):
+    """The row's Rubric (frozen; shared between callers, who must not change its lists)."""
     from rubric.rubrics import parse_rubric
 
+    key = (row.lesson, row.version, row.content_hash)
+    if key in _PARSED:
+        return _PARSED[key]
     rubric = parse_rubric(row.content)
     if rubric.content_hash != row.content_hash:  # stored content is never edited; a mismatch is corruption
         raise ValueError(f"rubric {row.lesson} v{row.version}: stored content does not match its hash "
                          f"{row.content_hash[:12]}")
+    _PARSED[key] = rubric
     return rubric
 
 
