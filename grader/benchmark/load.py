@@ -61,7 +61,7 @@ def bench_api(stack, submission_id: int, who: str, clients: int, requests: int, 
     figures = {"stack": stack.kind, "clients": clients, "requests_per_client": requests, "think_s": think_s,
                **latency_summary(every), "errors": len(errors), "error_examples": sorted(set(errors))[:5],
                "requests_per_s": (len(every) + len(errors)) / wall_s,
-               "by_path": {p.replace(str(submission_id), "{id}"): latency_summary(v) for p, v in latencies.items()}}
+               "by_path": {pattern: latency_summary(latencies[pattern.format(id=submission_id)]) for pattern in PATHS}}
     log(f"  {clients} clients (think {think_s:g} s) on {stack.kind}: p50 {figures['p50_ms']:.0f} ms, "
         f"p95 {figures['p95_ms']:.0f} ms, p99 {figures['p99_ms']:.0f} ms, {figures['errors']} errors, "
         f"{figures['requests_per_s']:.0f} req/s")

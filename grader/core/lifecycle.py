@@ -94,6 +94,39 @@ def store_reused(*, session: Session, run: CaseRun, measurement: Measurement) ->
     return _finish(session, run, status="done", detail=detail)
 
 
+def reuse_at_admission(*, session: Session, submission: Submission) -> bool:
+    """Finish each queued case run of a new submission whose content key already has a stored measurement, in the
+    request that stores it (no commit here: the caller's one transaction holds the submission and its runs). True when
+    none is left to run, the submission then 'grading': only its grade task needs sending. The worker decides again
+    for each run it receives (worker.case_run.reusable), so this only spares a broker round trip per stored case.
+
+    The key is worker.reuse's, computed with the engine versions installed beside the API: a host whose versions
+    differ from the measurement's finds no key and queues the run, which the worker then measures or reuses."""
+    from worker import reuse
+
+    if submission.force_rerun:
+        return False
+    for run in submission.case_runs:
+        if run.status != "queued":
+            continue
+        key = reuse.content_key(reuse.key_inputs(run.spec, backend=run.backend, precision=run.precision))
+        measurement = session.scalar(select(Measurement).where(Measurement.content_key == key))
+        if measurement is None:
+            continue
+        run.content_key, run.measurement_id, run.reused_from_id = key, measurement.id, measurement.case_run_id
+        run.provenance, run.artifact_dir, run.metrics = measurement.provenance, measurement.artifact_dir, measurement.metrics
+        run.actual_backend, run.result_status = measurement.backend, "ok"
+        run.status, run.finished_at = "done", utcnow()
+        session.add(Event(submission_id=submission.id, case_run_id=run.id, state="done",
+                          detail=f"reused measurement {measurement.id} of case run {measurement.case_run_id} "
+                                 f"(found when submitted)"))
+    if not submission.case_runs or any(run.status not in TERMINAL for run in submission.case_runs):
+        return False
+    submission.grading_at = utcnow()
+    touch(submission, "grading", "every case reuses a stored measurement", session=session)
+    return True
+
+
 def store_result(*, session: Session, run: CaseRun, result, key_inputs: dict[str, Any]) -> bool:
     """Record a CaseResult (ok or not) on the run; True when this moved the submission to grading.
 

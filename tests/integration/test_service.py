@@ -66,6 +66,10 @@ def test_same_configs_again_reuse_the_measurements_and_say_so(stack, first):
     created, _ = first
     again, final = submit_and_wait(stack, reference_sheet(), who="bob")
     assert final["status"] == "graded"
+    # Every case found its stored measurement when submitted: nothing was queued, only the grade task was sent.
+    assert again["status"] in ("grading", "graded") and again["progress"]["done"] == again["progress"]["total"] == 9
+    assert sum("found when submitted" in (e.detail or "") for e in events(stack, again["id"])) == 9
+    assert not any(e.state == "running" for e in events(stack, again["id"]))
     before = {run.name: run for run in case_runs(stack, created["id"])}
     for run in case_runs(stack, again["id"]):
         first_run = before[run.name]  # itself a reuse when an earlier test measured the same spec

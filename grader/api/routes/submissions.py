@@ -15,6 +15,7 @@ from grader.api.errors import error, field_errors
 from grader.api.ratelimit import limit_submissions
 from grader.api.responses import errors
 from grader.api.views import grade_history_public, grade_public, submission_public
+from grader.core import lifecycle
 from grader.core.rubrics import current_grade, grade_history
 from grader.models import Assignment, Event, utcnow
 from grader.schemas import CaseRunPublic, EventPublic, GradeHistoryEntry, GradePublic, SubmissionCreate, SubmissionPublic
@@ -84,11 +85,20 @@ def create_submission(body: SubmissionCreate, session: SessionDep, user: Current
         session.rollback()
         return error(409, "submission refused", [{"field": "assignment_id", "rule": (
             f"attempt {attempt} of assignment {assignment.id} was just taken by another submission; submit again")}])
+    grading = False
     if not specs:  # a checkpoint sheet whose lesson cases are all stored: graded now, nothing queued
         assignments.grade_now(session=session, submission=submission, sheet=sheet, runs=stored)
+    else:  # a case with a stored measurement is finished now; with none left to run, only the grade task is sent
+        grading = lifecycle.reuse_at_admission(session=session, submission=submission)
     session.commit()  # nothing is enqueued before the submission and all its case runs are durable
+    if grading:
+        try:
+            dispatch.send_grade(submission.id)
+        except Exception:  # stored as 'grading': the reconciler re-sends its grade task after the lease
+            log.exception("could not enqueue the grading of submission %s; the reconciler will re-send it",
+                          submission.id)
     for run in submission.case_runs:
-        if run.status != "queued":  # a checkpoint sheet's lesson cases, reused at once
+        if run.status != "queued":  # reused when submitted
             continue
         try:
             dispatch.send_case_run(run.id, run.attempt, run.backend)
