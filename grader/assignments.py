@@ -138,57 +138,21 @@ def counted_score(assignment: Assignment, submission: Submission, raw: float, ma
     return Counted(submission, raw, max_total, penalty, round(raw * (1.0 - penalty), 6))
 
 
-def lesson_runs(*, session: Session, backend: str = "cpu") -> dict:
-    """The lesson's own cases as already measured for any submission: the latest valid run of each on `backend`, by
-    case name. What a checkpoint sheet is graded on without running anything; a case never measured yet is absent,
-    and the API then queues the lesson's cases for that submission instead of grading it short."""
-    from rubric import BASELINE_CASES
-    from rubric.scoring import LESSON_RUNS
-
-    from grader.core.audit import spec_key
-    from grader.models import CaseRun
-
-    runs = {}
-    for name in LESSON_RUNS:
-        spec = BASELINE_CASES[name].model_dump(mode="json", exclude_computed_fields=True)
-        run = session.scalar(select(CaseRun).where(
-            CaseRun.spec_key == spec_key(spec), CaseRun.backend == backend, CaseRun.precision == spec["precision"],
-            CaseRun.purpose == "grading", CaseRun.status == "done", CaseRun.result_status == "ok")
-            .order_by(CaseRun.id.desc()).limit(1))
-        if run is not None:
-            runs[name] = run
-    return runs
-
-
-def grade_now(*, session: Session, submission: Submission, sheet, runs: dict):
-    """Grade a checkpoint sheet in the request that stores it, on the lesson's cases as stored (`runs`, from
-    lesson_runs: every case it needs). Nothing is run: each becomes a case run of this submission reusing that stored
-    measurement, as the worker records a reuse, so the report shows which runs decided the grade, with their
-    provenance and downloads. The caller commits."""
+def grade_now(*, session: Session, submission: Submission, sheet):
+    """Grade a checkpoint sheet in the request that stores it: every case it needs (the lesson's own) was finished on
+    a stored measurement when submitted (grader.core.lifecycle.reuse_at_admission), so nothing is run or queued and
+    its report lists the runs that decided the grade. The caller commits."""
     import time
 
     import rubric
 
     from grader.core.lifecycle import stored_result, touch
     from grader.core.rubrics import course_rubric
-    from grader.models import CaseRun, Event, Grade, utcnow
+    from grader.models import Grade, utcnow
 
     started = time.perf_counter()
-    now = utcnow()
-    for name, stored in runs.items():
-        origin = stored.reused_from_id or stored.id
-        run = CaseRun(submission_id=submission.id, name=name, kind=stored.kind, backend=stored.backend,
-                      precision=stored.precision, spec=stored.spec, spec_key=stored.spec_key,
-                      content_key=stored.content_key, status="done", result_status="ok",
-                      actual_backend=stored.actual_backend, provenance=stored.provenance, metrics=stored.metrics,
-                      artifact_dir=stored.artifact_dir, measurement_id=stored.measurement_id, reused_from_id=origin,
-                      queued_at=now, finished_at=now)
-        session.add(run)
-        session.flush()
-        session.add(Event(submission_id=submission.id, case_run_id=run.id, state="done",
-                          detail=f"reused the stored measurement of case run {origin} (the lesson's own case)"))
     book = course_rubric(session, submission.course_id, submission.lesson)
-    report = rubric.grade_sheet(sheet, {name: stored_result(run) for name, run in runs.items()}, book)
+    report = rubric.grade_sheet(sheet, {run.name: stored_result(run) for run in submission.case_runs}, book)
     grade = Grade(submission_id=submission.id, rubric_lesson=book.lesson, rubric_version=str(book.version),
                   rubric_hash=book.content_hash, total=report.total, max_total=report.max_total,
                   report=report.model_dump(mode="json"), execution_s=time.perf_counter() - started)

@@ -119,13 +119,17 @@ def rubric_v3(**tolerance_values: float) -> dict:
 
 def store_lesson_runs(session, measured: dict, *, by: str) -> dict[str, int]:
     """Store the lesson's own cases (rubric.scoring.LESSON_RUNS) as measured (`measured`: real CaseResults by name),
-    as the done case runs of one submission by user `by`; commits. Their case run ids by name."""
+    as the done case runs of one submission by user `by` and their reusable Measurements, as a worker that ran them
+    would have left them; commits. Their case run ids by name."""
     from sqlalchemy import select
 
     from grader import crud
     from grader.models import User
     from rubric import BASELINE_CASES
     from rubric.scoring import LESSON_RUNS
+
+    from grader.models import Measurement
+    from worker import reuse
 
     user = session.scalar(select(User).where(User.name == by))
     earlier = crud.create_submission(session=session, student=user, lesson="L03", sheet=reference_sheet(),
@@ -137,5 +141,10 @@ def store_lesson_runs(session, measured: dict, *, by: str) -> dict[str, int]:
         run.provenance = result.provenance.model_dump(mode="json")
         run.metrics = result.metrics.model_dump(mode="json")
         run.actual_backend, run.wall_s = result.provenance.actual_backend, result.wall_s
+        inputs = reuse.key_inputs(run.spec, backend=run.backend, precision=run.precision)
+        run.content_key = reuse.content_key(inputs)
+        session.add(Measurement(content_key=run.content_key, key_inputs=inputs, case_run_id=run.id,
+                                backend=run.actual_backend, provenance=run.provenance, metrics=run.metrics,
+                                artifact_dir=run.artifact_dir))
     session.commit()
     return {run.name: run.id for run in earlier.case_runs}

@@ -107,7 +107,7 @@ def cases_to_run(sheet: PredictionSheet, rubric: Rubric | None = None) -> list:
     rule (a config that breaks it is graded as such, never run as if valid). Unique names.
 
     A sheet of concept checkpoints only submits no config, so it needs the lesson's own cases alone: the same runs for
-    every student. The API grades such a sheet at once where all are stored (grader.assignments.lesson_runs) and
+    every student. The API grades such a sheet at once where all are stored (grader.assignments.grade_now) and
     queues them only while one was never measured."""
     rubric = rubric or load_rubric(sheet.lesson)
     findings = one_factor_findings(sheet, rubric)

@@ -192,15 +192,18 @@ def test_a_checkpoint_submission_on_a_service_that_never_measured_the_lesson_que
     assert api.client.get(f"/v1/submissions/{row['id']}/grade", headers=api.as_("prof")).status_code == 409  # not yet
 
 
-def test_a_checkpoint_submission_with_one_lesson_case_missing_queues_the_lessons_cases(api, lesson_measured):
-    from grader.core.db import new_session
-    from grader.models import CaseRun
+def test_a_checkpoint_submission_with_one_lesson_case_never_measured_queues_it(api, lesson_measured):
+    from sqlalchemy import delete
 
-    with new_session() as session:  # friction-baseline's only valid run failed after all
-        session.get(CaseRun, lesson_measured["friction-baseline"]).result_status = "failed"
+    from grader.core.db import new_session
+    from grader.models import Measurement
+
+    with new_session() as session:  # friction-baseline was never measured under this key (say, another engine)
+        session.execute(delete(Measurement).where(Measurement.case_run_id == lesson_measured["friction-baseline"]))
         session.commit()
     row = submit(api, create(api).json()["id"]).json()
-    assert row["status"] != "graded" and row["progress"]["total"] == len(api.sent) == len(lesson_measured)
+    assert row["status"] != "graded" and row["progress"]["total"] == len(lesson_measured)
+    assert row["progress"]["done"] == len(lesson_measured) - 1 and len(api.sent) == 1  # only it is measured
 
 
 def test_answers_outside_the_assignment_are_refused_naming_them(api):
@@ -223,7 +226,10 @@ def test_an_exercise_submission_queues_its_cases_and_holds_no_checkpoint(api):
     sheet["answers"] = {k: v for k, v in sheet["answers"].items() if k not in CHECKPOINT_IDS}
     response = submit(api, aid, sheet=sheet)
     assert response.status_code == 202, response.text
-    assert response.json()["status"] == "running" and len(api.sent) == response.json()["progress"]["total"] > 0
+    progress = response.json()["progress"]
+    # Its own two configs are queued; the lesson's 7 cases reuse their stored measurements.
+    assert response.json()["status"] == "running" and (progress["total"], progress["done"]) == (9, 7)
+    assert len(api.sent) == progress["queued"] == 2
 
 
 def test_before_open_after_close_and_beyond_attempts_are_refused_with_the_rule_and_time(api):

@@ -15,7 +15,7 @@ from tests.grader.test_assignments import (  # noqa: F401 - collected here again
     lesson_cases_stored,
     test_a_checkpoint_submission_on_a_service_that_never_measured_the_lesson_queues_its_cases,
     test_a_checkpoint_submission_runs_no_case_and_is_graded_at_once_on_its_items_only,
-    test_a_checkpoint_submission_with_one_lesson_case_missing_queues_the_lessons_cases,
+    test_a_checkpoint_submission_with_one_lesson_case_never_measured_queues_it,
     test_a_late_attempt_is_penalized_per_day_and_the_export_shows_raw_beside_counted,
     test_an_extension_lets_one_student_submit_after_the_close,
     test_before_open_after_close_and_beyond_attempts_are_refused_with_the_rule_and_time,

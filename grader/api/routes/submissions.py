@@ -68,13 +68,6 @@ def create_submission(body: SubmissionCreate, session: SessionDep, user: Current
     if assignment is not None and sheet.lesson != assignment.lesson:
         return error(422, "invalid sheet", [{"field": "sheet.lesson",
                                              "rule": f"assignment {assignment.id} is for lesson {assignment.lesson}"}])
-    stored = None
-    if sheets.checkpoints_only(sheet) and not body.force_rerun:
-        # The lesson's own cases, the same for every student: graded now on those already measured, or queued (and
-        # reused by the worker where stored) while one was never measured, so no student loses a point to a gap.
-        stored = assignments.lesson_runs(session=session, backend=body.backend or "cpu")
-        if all(spec.name in stored for spec in specs):
-            specs = []
     submission = crud.create_submission(session=session, student=user, lesson=sheet.lesson, sheet=body.sheet,
                                         specs=specs, force_rerun=body.force_rerun)
     if assignment is not None:
@@ -85,11 +78,13 @@ def create_submission(body: SubmissionCreate, session: SessionDep, user: Current
         session.rollback()
         return error(409, "submission refused", [{"field": "assignment_id", "rule": (
             f"attempt {attempt} of assignment {assignment.id} was just taken by another submission; submit again")}])
-    grading = False
-    if not specs:  # a checkpoint sheet whose lesson cases are all stored: graded now, nothing queued
-        assignments.grade_now(session=session, submission=submission, sheet=sheet, runs=stored)
-    else:  # a case with a stored measurement is finished now; with none left to run, only the grade task is sent
-        grading = lifecycle.reuse_at_admission(session=session, submission=submission)
+    # A case with a stored measurement is finished now; with none left to run, only the grade task is sent, or a
+    # checkpoint sheet (the lesson's own cases only, the same for every student) is graded in this request. While
+    # one of its cases was never measured it is queued like any other, so no student loses a point to a gap.
+    grading = lifecycle.reuse_at_admission(session=session, submission=submission)
+    if grading and sheets.checkpoints_only(sheet):
+        assignments.grade_now(session=session, submission=submission, sheet=sheet)
+        grading = False
     session.commit()  # nothing is enqueued before the submission and all its case runs are durable
     if grading:
         try:
