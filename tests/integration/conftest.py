@@ -32,7 +32,15 @@ class Stack:
 
 
 @pytest.fixture(scope="session")
-def stack(tmp_path_factory):
+def kernel_cache_filled(measured) -> None:
+    """The machine's Genesis kernel cache holds the lesson's kernels before a test copies it for processes it may
+    SIGKILL (services.private_kernel_cache): on a fresh machine an empty copy would make every fresh worker compile
+    for ~100 s, and a recovery timed from a worker being ready would time the compiler. `measured` compiles them
+    (once per session, shared with every other user of it)."""
+
+
+@pytest.fixture(scope="session")
+def stack(tmp_path_factory, kernel_cache_filled):
     from grader.core.db import make_engine, migrate
 
     redis = services.redis_client()

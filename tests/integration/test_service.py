@@ -9,7 +9,10 @@ from importlib.metadata import version
 import httpx
 import numpy as np
 import pytest
+from sqlalchemy import select
+from sqlalchemy.orm import Session
 
+from grader.models import Measurement
 from worker import reuse
 from rubric import case_metrics, cases_to_run, expected_arrays, load_rubric, parse_case, parse_sheet
 from rubric.metrics import parse_metrics
@@ -161,5 +164,10 @@ def test_a_checkpoint_assignment_is_graded_by_the_worker_on_the_lesson_cases_the
     assert all(r.status == "done" and r.reused_from_id is None and r.actual_backend == "cpu" for r in measured.values())
     again = stack.client("bob").submit(checkpoint_sheet("bob"), assignment_id=aid)
     assert (again["status"], again["total"]) == ("graded", 8)
-    assert {r.name: r.reused_from_id for r in case_runs(stack, again["id"])} == {n: r.id for n, r in measured.items()}
+    # each reuses the measurement stored under the content key the forced run computed (the first one measured of
+    # that key: a forced run keeps its own evidence and does not replace it)
+    with Session(stack.engine) as session:
+        stored = dict(session.execute(select(Measurement.content_key, Measurement.case_run_id)).all())
+    reused = {r.name: (r.content_key, r.reused_from_id) for r in case_runs(stack, again["id"])}
+    assert reused == {n: (r.content_key, stored[r.content_key]) for n, r in measured.items()}
     assert grades_of(stack, again["id"]) == 1
