@@ -41,6 +41,9 @@ class Client:
     def case_runs(self, submission_id: int) -> list:
         return self._ok(self.http.get(f"/submissions/{submission_id}/case-runs"))
 
+    def events(self, submission_id: int) -> list:
+        return self._ok(self.http.get(f"/submissions/{submission_id}/events"))
+
     def dashboard(self, course: str) -> dict:
         return self._ok(self.http.get(f"/courses/{course}/dashboard"))
 

@@ -75,9 +75,10 @@ def draw_figures(submission_id: int, results: dict) -> tuple[str, list]:
 
     folder = settings.figures_dir(submission_id)
     cache = FigureCache(settings.artifacts_dir / "figure-cache")
+    started = time.perf_counter()
     try:
         paths = lab_figures(results, folder, cache=cache)
     except Exception as exc:  # noqa: BLE001 - the evidence of a drawing bug is the event, the grade stands
         return f"figures failed: {type(exc).__name__}: {exc}", []
     return (f"{len(paths)} figures in {folder} ({cache.drawn} drawn, {cache.copied} copied from the figure cache: "
-            f"same runs, same drawing code)"), paths
+            f"same runs, same drawing code) in {time.perf_counter() - started:.2f} s"), paths

@@ -50,12 +50,29 @@ def graded_after(state: dict, posted_at: datetime) -> float:
     return (graded_at - posted_at).total_seconds()
 
 
+def _at(stamp: str) -> datetime:
+    at = datetime.fromisoformat(stamp)
+    return at.astimezone(UTC).replace(tzinfo=None) if at.tzinfo is not None else at
+
+
+def phases(client, state: dict, posted_at: datetime) -> dict:
+    """Where a submission's POST-to-grade time went, from its stored events: until its last case finished (the
+    submission's 'grading' event) and from there to the stored grade (the rubric, the figures, the lab check)."""
+    events = client.events(state["id"])
+    grading = [e for e in events if e["case_run_id"] is None and e["state"] == "grading"]
+    if not grading:
+        raise BenchFailure(f"submission {state['id']}: no 'grading' event among {[e['state'] for e in events]}")
+    grading_at = _at(grading[-1]["at"])
+    return {"cases_s": (grading_at - posted_at).total_seconds(),
+            "grading_s": (_at(state["graded_at"]) - grading_at).total_seconds()}
+
+
 def time_submission(client, sheet: dict, *, worker=None, **options) -> tuple[float, dict]:
     """POST the sheet, wait for its grade; (seconds from POST to stored grade, final state)."""
     posted_at = _utcnow()
     created = client.submit(sheet, **options)
     state = wait_graded(client, created["id"], worker=worker)
-    return graded_after(state, posted_at), state
+    return graded_after(state, posted_at), state | {"phases": phases(client, state, posted_at)}
 
 
 def bench_submission(stack, repeats: int, log: Callable[[str], None] = print) -> dict:
@@ -64,11 +81,14 @@ def bench_submission(stack, repeats: int, log: Callable[[str], None] = print) ->
     sheet = reference_sheet()
     first_s, state = time_submission(client, sheet, worker=stack.worker)
     log(f"  submission on a just-started worker: {first_s:.2f} s ({state['progress']['total']} case runs)")
-    cold, reused = [], []
+    cold, reused, cold_cases, cold_grading = [], [], [], []
     for r in range(repeats):
-        seconds, _ = time_submission(client, sheet, worker=stack.worker, force_rerun=True)
+        seconds, state = time_submission(client, sheet, worker=stack.worker, force_rerun=True)
         cold.append(seconds)
-        log(f"  repeat {r + 1}/{repeats} cold {seconds:.2f} s")
+        cold_cases.append(state["phases"]["cases_s"])
+        cold_grading.append(state["phases"]["grading_s"])
+        log(f"  repeat {r + 1}/{repeats} cold {seconds:.2f} s (cases {cold_cases[-1]:.2f} s, "
+            f"grading {cold_grading[-1]:.2f} s)")
         seconds, state = time_submission(client, sheet, worker=stack.worker)
         runs = client.case_runs(state["id"])
         if not all(run["reused_from_id"] for run in runs):
@@ -76,4 +96,6 @@ def bench_submission(stack, repeats: int, log: Callable[[str], None] = print) ->
         reused.append(seconds)
         log(f"  repeat {r + 1}/{repeats} reused {seconds:.2f} s")
     return {"stack": stack.kind, "repeats": repeats, "case_runs": state["progress"]["total"], "first_s": first_s,
-            "cold_s": median(cold), "reused_s": median(reused), "cold_samples_s": cold, "reused_samples_s": reused}
+            "cold_s": median(cold), "reused_s": median(reused), "cold_samples_s": cold, "reused_samples_s": reused,
+            # the cold median split at the last case's end: case runs (with their queueing) | rubric, figures, check
+            "cold_cases_s": median(cold_cases), "cold_grading_s": median(cold_grading)}

@@ -35,6 +35,8 @@ def format_submission(f: dict) -> list[str]:
             f"median of {f['repeats']}:",
             f"  first on a just-started worker {f['first_s']:8.2f} s",
             f"  cold (force_rerun)             {f['cold_s']:8.2f} s   {verdict('submission_cold_s', f['cold_s'])}",
+            *([f"    until the last case finished {f['cold_cases_s']:6.2f} s, then grading (rubric, figures, "
+               f"lab check) {f['cold_grading_s']:.2f} s"] if "cold_cases_s" in f else []),
             f"  fully reused                   {f['reused_s']:8.2f} s   "
             f"{verdict('submission_reused_s', f['reused_s'])}",
             f"  cold / reused                  {f['cold_s'] / f['reused_s']:8.1f} x"]

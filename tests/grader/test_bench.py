@@ -13,7 +13,7 @@ from grader.benchmark import stats, tables
 from grader.benchmark.classroom import class_sheets, distinct_configs
 
 SUBMISSION = {"stack": "embedded", "repeats": 3, "case_runs": 9, "first_s": 90.0, "cold_s": 12.0, "reused_s": 0.4,
-              "cold_samples_s": [12.0], "reused_samples_s": [0.4]}
+              "cold_samples_s": [12.0], "reused_samples_s": [0.4], "cold_cases_s": 7.5, "cold_grading_s": 4.5}
 CLASS = [{"stack": "embedded", "submissions": 20, "graded": 20, "failed": 0, "distinct_configs": 36,
           "two_factor": 2, "posting_s": 3.0, "total_s": 60.0, "per_submission_s": 3.0},
          {"stack": "redis-pg", "submissions": 20, "graded": 20, "failed": 0, "distinct_configs": 36,
@@ -49,6 +49,7 @@ def test_tables_print_every_figure_beside_its_target():
                       *tables.format_memory(MEMORY), *tables.format_api(API)])
     assert "fully reused                       0.40 s   met (<= 0.5 s)" in text
     assert "cold (force_rerun)                12.00 s   MISSED by 7 s (2.4x the 5 s)" in text
+    assert "until the last case finished   7.50 s, then grading (rubric, figures, lab check) 4.50 s" in text
     assert "projected to 200: 600 s from 20" in text and "embedded / redis-pg: 1.50x" in text
     assert "max    met (<= 1536 MB) (54 of 500 cases)" in text and "growth +2.0%" in text
     assert "MISSED by 10 ms (1.2x the 50 ms)" in text and "/v1/submissions/{id}" in text
