@@ -42,29 +42,25 @@ def wait_graded(client, submission_id: int, *, poll_s: float = 0.1, worker=None)
         time.sleep(poll_s)
 
 
-def graded_after(state: dict, posted_at: datetime) -> float:
-    """Seconds from just before the POST to the grade the server stored (its graded_at, same clock)."""
-    graded_at = datetime.fromisoformat(state["graded_at"])
-    if graded_at.tzinfo is not None:
-        graded_at = graded_at.astimezone(UTC).replace(tzinfo=None)
-    return (graded_at - posted_at).total_seconds()
-
-
 def _at(stamp: str) -> datetime:
+    """A server timestamp as naive UTC, the clock `_utcnow` reads."""
     at = datetime.fromisoformat(stamp)
     return at.astimezone(UTC).replace(tzinfo=None) if at.tzinfo is not None else at
 
 
-def phases(client, state: dict, posted_at: datetime) -> dict:
-    """Where a submission's POST-to-grade time went, from its stored events: until its last case finished (the
-    submission's 'grading' event) and from there to the stored grade (the rubric, the figures, the lab check)."""
+def graded_after(state: dict, posted_at: datetime) -> float:
+    """Seconds from just before the POST to the grade the server stored (its graded_at, same clock)."""
+    return (_at(state["graded_at"]) - posted_at).total_seconds()
+
+
+def grading_seconds(client, state: dict) -> float:
+    """Seconds from a graded submission's last case finishing (its 'grading' event) to its stored grade: the rubric,
+    the figures and the lab check. The rest of its POST-to-grade time went to its case runs and their queueing."""
     events = client.events(state["id"])
     grading = [e for e in events if e["case_run_id"] is None and e["state"] == "grading"]
     if not grading:
         raise BenchFailure(f"submission {state['id']}: no 'grading' event among {[e['state'] for e in events]}")
-    grading_at = _at(grading[-1]["at"])
-    return {"cases_s": (grading_at - posted_at).total_seconds(),
-            "grading_s": (_at(state["graded_at"]) - grading_at).total_seconds()}
+    return (_at(state["graded_at"]) - _at(grading[-1]["at"])).total_seconds()
 
 
 def time_submission(client, sheet: dict, *, worker=None, **options) -> tuple[float, dict]:
@@ -72,7 +68,7 @@ def time_submission(client, sheet: dict, *, worker=None, **options) -> tuple[flo
     posted_at = _utcnow()
     created = client.submit(sheet, **options)
     state = wait_graded(client, created["id"], worker=worker)
-    return graded_after(state, posted_at), state | {"phases": phases(client, state, posted_at)}
+    return graded_after(state, posted_at), state
 
 
 def bench_submission(stack, repeats: int, log: Callable[[str], None] = print) -> dict:
@@ -85,8 +81,8 @@ def bench_submission(stack, repeats: int, log: Callable[[str], None] = print) ->
     for r in range(repeats):
         seconds, state = time_submission(client, sheet, worker=stack.worker, force_rerun=True)
         cold.append(seconds)
-        cold_cases.append(state["phases"]["cases_s"])
-        cold_grading.append(state["phases"]["grading_s"])
+        cold_grading.append(grading_seconds(client, state))
+        cold_cases.append(seconds - cold_grading[-1])
         log(f"  repeat {r + 1}/{repeats} cold {seconds:.2f} s (cases {cold_cases[-1]:.2f} s, "
             f"grading {cold_grading[-1]:.2f} s)")
         seconds, state = time_submission(client, sheet, worker=stack.worker)
