@@ -155,7 +155,8 @@ def grade_now(*, session: Session, submission: Submission, sheet):
     report = rubric.grade_sheet(sheet, {run.name: stored_result(run) for run in submission.case_runs}, book)
     grade = Grade(submission_id=submission.id, rubric_lesson=book.lesson, rubric_version=str(book.version),
                   rubric_hash=book.content_hash, total=report.total, max_total=report.max_total,
-                  report=report.model_dump(mode="json"), execution_s=time.perf_counter() - started)
+                  report=report.model_dump(mode="json"), execution_s=time.perf_counter() - started,
+                  completed_at=utcnow())  # a checkpoint set has no figures or lab check to draw
     session.add(grade)
     submission.graded_at = utcnow()
     touch(submission, "graded", f"{report.total:g} / {report.max_total:g} (no case run: graded at once on the "

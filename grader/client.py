@@ -96,14 +96,16 @@ class Client:
         return self._ok(self.http.post(f"/courses/{course}/roster", json={"csv": csv_text}))
 
     def wait(self, submission_id: int, *, poll_s: float = 1.0, on_progress: Callable[[dict], None] | None = None,
-             timeout_s: float | None = None) -> dict:
-        """Poll until graded or failed; on_progress gets every status body."""
+             timeout_s: float | None = None, complete: bool = True) -> dict:
+        """Poll until failed, or graded with its report complete (figures and lab check stored; `complete=False`:
+        graded is enough); on_progress gets every status body."""
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
         while True:
             state = self.submission(submission_id)
             if on_progress:
                 on_progress(state)
-            if state["status"] in ("graded", "failed"):
+            if state["status"] == "failed" or (state["status"] == "graded"
+                                               and (not complete or state.get("report_complete") is not False)):
                 return state
             if deadline is not None and time.monotonic() > deadline:
                 raise TimeoutError(f"submission {submission_id} still {state['status']} after {timeout_s} s")

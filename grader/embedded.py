@@ -75,14 +75,16 @@ def reconcile_forever(stop: threading.Event) -> None:
 
 
 def follow(client, submission_id: int, total: int) -> dict:
-    """Progress bar until graded or failed."""
+    """Progress bar until failed, or graded with its figures and lab check stored."""
     with click.progressbar(length=total, label="measuring cases", show_pos=True) as bar:
         shown = 0
 
         def update(state: dict) -> None:
             nonlocal shown
             finished = state["progress"]["done"] + state["progress"]["failed"]
-            bar.label = f"{state['status']:8s} {state['progress']['running']} running"
+            drawing = state["status"] == "graded" and state.get("report_complete") is False
+            bar.label = ("graded, drawing figures and the lab check" if drawing
+                         else f"{state['status']:8s} {state['progress']['running']} running")
             bar.update(finished - shown)
             shown = finished
 

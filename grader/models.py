@@ -261,7 +261,12 @@ class Regrade(Base):
 class Grade(Base):
     """A submission's grade under one rubric version. The current one has superseded_at NULL; a regrade adds a new
     row and marks the old one superseded, never deleting it. At most one current grade per submission (a partial
-    unique index): a second grading attempt fails on it instead of grading twice."""
+    unique index): a second grading attempt fails on it instead of grading twice.
+
+    The worker stores a grade (scores, verdicts, feedback) as soon as the rubric has run, with `completed_at` NULL,
+    then draws the lab figures and adds the lab check to its report (`report["check"]`) and sets `completed_at`:
+    the score never changes after it is stored, only the check and the figures join it. A grade made any other way
+    (a regrade, a checkpoint sheet graded at once) is complete when stored."""
 
     __tablename__ = "grades"
     __table_args__ = (Index("uq_grades_current", "submission_id", unique=True,
@@ -277,6 +282,9 @@ class Grade(Base):
     report: Mapped[dict[str, Any]]
     execution_s: Mapped[float] = mapped_column(Float, default=0.0)
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    # When its figures were drawn and its lab check stored; NULL while they are (worker.grading.complete_grade).
+    # No default: whoever stores a grade says whether it is complete (the ORM would put a default in for a None).
+    completed_at: Mapped[datetime | None] = mapped_column(DateTime)
     superseded_at: Mapped[datetime | None] = mapped_column(DateTime)
     regrade_id: Mapped[int | None] = mapped_column(ForeignKey("regrades.id"))
 

@@ -11,7 +11,7 @@ from pydantic import BaseModel
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from grader.models import CaseRun, Submission, utcnow
+from grader.models import CaseRun, Grade, Submission, utcnow
 from grader.settings import settings
 
 DURATION_BUCKETS_S = (1, 2, 5, 10, 20, 30, 60, 120, 300, 600, 900)
@@ -24,6 +24,7 @@ class ServiceStatus(BaseModel):
     case_runs_by_state: dict[str, dict[str, int]]  # backend -> state -> count
     failures_by_reason: dict[str, int]
     stuck_case_runs: int
+    grades_drawing: int = 0  # current grades stored whose figures and lab check are not yet (worker.grading)
     durations_s: list[float]  # wall time of every case measured (not reused), for the histogram
     broker_error: str | None = None
 
@@ -61,6 +62,8 @@ def service_status(session: Session, *, timeout_s: float = 1.0) -> ServiceStatus
     stuck = session.scalar(select(func.count()).select_from(CaseRun).where(
         ((CaseRun.status == "running") & (CaseRun.lease_until < now))
         | ((CaseRun.status == "queued") & (CaseRun.queued_at < now - timedelta(seconds=settings.queue_lease_s)))))
+    drawing = session.scalar(select(func.count()).select_from(Grade).where(
+        Grade.superseded_at.is_(None), Grade.completed_at.is_(None)))
     durations = session.scalars(select(CaseRun.wall_s).where(
         CaseRun.status == "done", CaseRun.reused_from_id.is_(None), CaseRun.wall_s.is_not(None))).all()
     return ServiceStatus(
@@ -68,7 +71,7 @@ def service_status(session: Session, *, timeout_s: float = 1.0) -> ServiceStatus
         submissions_by_state=dict(session.execute(
             select(Submission.status, func.count()).group_by(Submission.status)).all()),
         case_runs_by_state=by_state, failures_by_reason=dict(Counter(failure_reason(r) for r in failed)),
-        stuck_case_runs=stuck or 0, durations_s=[float(d) for d in durations])
+        stuck_case_runs=stuck or 0, grades_drawing=drawing or 0, durations_s=[float(d) for d in durations])
 
 
 class StatusCollector:
@@ -113,6 +116,10 @@ class StatusCollector:
         stuck = GaugeMetricFamily("grader_stuck_case_runs", "Case runs past their lease or queue lease")
         stuck.add_metric([], status.stuck_case_runs)
         yield stuck
+        drawing = GaugeMetricFamily("grader_grades_drawing", "Grades stored whose figures and lab check are being "
+                                                             "drawn (the score is final)")
+        drawing.add_metric([], status.grades_drawing)
+        yield drawing
         buckets = [(str(b), sum(1 for d in status.durations_s if d <= b)) for b in DURATION_BUCKETS_S]
         buckets.append(("+Inf", len(status.durations_s)))
         yield HistogramMetricFamily("grader_case_run_duration_seconds", "Wall time of measured (not reused) case runs",

@@ -7,7 +7,9 @@
   are pending gradings;
 - where liveness is not knowable (the embedded broker, or no broker answer) the leases decide:
   running past its lease (worker crash, machine loss), or queued longer than queue_lease_s;
-- grading longer than the lease (grade task lost): the grade task is re-sent (grading is exactly-once anyway).
+- grading longer than the lease (grade task lost): the grade task is re-sent (grading is exactly-once anyway);
+- graded, but its figures and lab check still missing a lease after the grade task was sent (the worker died while
+  drawing them): the grade task is re-sent, and completes the stored grade without grading again.
 A new attempt number makes every older message for that case run stale, so a late redelivery never runs twice.
 A rocm/cuda case run with no worker of its kind is simply re-sent to the same queue: never to another backend.
 """
@@ -21,7 +23,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.core import lifecycle
-from grader.models import CaseRun, Event, Submission, utcnow
+from grader.models import CaseRun, Event, Grade, Submission, utcnow
 from grader.settings import settings
 
 # A run younger than this is never judged by liveness: its message may be between the broker and a worker.
@@ -102,6 +104,15 @@ def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=
     for submission in session.scalars(stuck).all():
         submission.grading_at = utcnow()
         session.add(Event(submission_id=submission.id, state="grading", detail="grade task re-sent"))
+        resend.gradings.append(submission.id)
+    # grading_at is when the grade task was last sent: re-sending it starts the lease again.
+    incomplete = (select(Submission).join(Grade, Grade.submission_id == Submission.id)
+                  .where(Submission.status == "graded", Grade.superseded_at.is_(None), Grade.completed_at.is_(None),
+                         Submission.grading_at < now - timedelta(seconds=grading_lease)))
+    for submission in session.scalars(incomplete).all():
+        submission.grading_at = utcnow()
+        session.add(Event(submission_id=submission.id, state="figures",
+                          detail="grade task re-sent: the grade is stored, its figures and lab check are not"))
         resend.gradings.append(submission.id)
     session.commit()
     return resend

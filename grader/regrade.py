@@ -117,6 +117,9 @@ def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric):
                  changed_items=[])
     if grade.rubric_version == new_rubric.version:
         return RegradeEntry(**entry, skipped=f"already graded under v{new_rubric.version}"), None
+    if grade.completed_at is None:  # its lab check would be evaluated on figures half drawn
+        return RegradeEntry(**entry, skipped="its figures and lab check are still being drawn: regrade it once "
+                                             "they are (seconds)"), None
     try:
         sheet = rubric.parse_sheet(submission.sheet, submission.items)
         measured = {run.name for run in submission.case_runs}
@@ -190,7 +193,8 @@ def commit_regrade(session: Session, *, course: Course, lesson: str, version: st
         session.add(Grade(submission_id=entry.submission_id, rubric_lesson=new_rubric.lesson,
                           rubric_version=new_rubric.version, rubric_hash=new_rubric.content_hash, total=report.total,
                           max_total=report.max_total, report=report.model_dump(mode="json"),
-                          execution_s=preview.elapsed_s / max(len(results), 1), created_at=now, regrade_id=regrade.id))
+                          execution_s=preview.elapsed_s / max(len(results), 1), created_at=now, regrade_id=regrade.id,
+                          completed_at=now))  # its lab check was evaluated again on the figures already drawn
         regrade.regraded += 1
     session.commit()
     return regrade, preview

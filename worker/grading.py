@@ -1,14 +1,21 @@
-"""Grade a submission once its last case run finished: the rubric engine on the stored measurements, then the
-lab figures drawn from the same results (never inside an API request), then the lab check (L03 CHECK line) on the
-submission's own runs, stored with the grade.
+"""Grade a submission once its last case run finished, in two steps of the `grade_submission` task:
 
-The worker-side body of the `grade_submission` task; state changes go through grader.core.lifecycle.
+1. `grade_submission`: the rubric engine on the stored measurements; the grade (scores, verdicts, feedback) is
+   stored and the submission is 'graded' as soon as it has run (about 0.3 s for L03);
+2. `complete_grade`: the lab figures drawn from the same results (never inside an API request), then the lab check
+   (L03 CHECK line) on the submission's own runs, added to the stored grade, which is then complete. Drawing takes
+   a few seconds; a student reads the score meanwhile and the report page says the rest is being drawn.
+
+Both are idempotent: a re-sent grade task (a worker killed while drawing; the reconciler re-sends it for a grade
+left incomplete) completes what is missing and never grades twice. State changes go through
+grader.core.lifecycle.
 """
 
 from __future__ import annotations
 
 import time
 
+from sqlalchemy import update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
@@ -20,7 +27,9 @@ from grader.settings import settings
 
 
 def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
-    """Grade a submission in state 'grading' exactly once; None if it is not (or no longer) waiting for a grade."""
+    """Grade a submission in state 'grading' exactly once; None if it is not (or no longer) waiting for a grade.
+
+    The grade is stored without its figures and lab check (completed_at NULL): `complete_grade` adds them."""
     import rubric
 
     submission = session.get(Submission, submission_id)
@@ -42,20 +51,14 @@ def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
         touch(submission, "failed", submission.error, session=session)
         session.commit()
         return None
-    execution_s = time.perf_counter() - started  # grading itself; drawing the figures is not part of it
-    figures_note, figures = draw_figures(submission.id, results)
-    reused = {run.name: run.reused_from_id for run in submission.case_runs if run.reused_from_id}
-    check, check_note = lab_check(results, figures=figures, rubric=book, reused=reused,
-                                  artifacts_dir=settings.artifacts_dir)
-    report = report.model_copy(update={"check": check})
     grade = Grade(submission_id=submission.id, rubric_lesson=book.lesson, rubric_version=str(book.version),
                   rubric_hash=book.content_hash, total=report.total, max_total=report.max_total,
-                  report=report.model_dump(mode="json"), execution_s=execution_s)
+                  report=report.model_dump(mode="json"), execution_s=time.perf_counter() - started,
+                  completed_at=None)
     session.add(grade)
     submission.graded_at = utcnow()
-    session.add(Event(submission_id=submission.id, state="figures", detail=figures_note))
-    session.add(Event(submission_id=submission.id, state="lab-check", detail=check_note))
-    touch(submission, "graded", f"{report.total:g} / {report.max_total:g}", session=session)
+    touch(submission, "graded", f"{report.total:g} / {report.max_total:g}; figures and lab check next",
+          session=session)
     try:
         session.commit()
     except IntegrityError:  # another grader won the race; its grade stands
@@ -64,8 +67,49 @@ def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
     return grade
 
 
+def complete_grade(*, session: Session, submission_id: int) -> Grade | None:
+    """Draw the figures of a submission's current grade and add its lab check, once; None when there is nothing
+    to complete (no grade, or complete already).
+
+    Nothing is locked while drawing (a write lock would stop every other writer of an SQLite database for seconds):
+    two completions of one grade draw the same files from the same runs, and only the first to store its check wins.
+    """
+    submission = session.get(Submission, submission_id)
+    grade = current_grade(session, submission_id)
+    if submission is None or grade is None or grade.completed_at is not None:
+        return None
+    check, figures_note, check_note = _figures_and_check(submission, course_rubric(session, submission.course_id,
+                                                                                   submission.lesson))
+    report = {**grade.report, "check": check.model_dump(mode="json") if check is not None else None}
+    stored = session.execute(update(Grade).where(Grade.id == grade.id, Grade.completed_at.is_(None))
+                             .values(report=report, completed_at=utcnow())).rowcount == 1
+    if not stored:  # completed meanwhile by a duplicate delivery of the grade task
+        session.rollback()
+        return None
+    session.add(Event(submission_id=submission.id, state="figures", detail=figures_note))
+    session.add(Event(submission_id=submission.id, state="lab-check", detail=check_note))
+    session.commit()
+    session.refresh(grade)
+    return grade
+
+
+def _figures_and_check(submission: Submission, book) -> tuple:
+    """(the lab check or None, the figures' event note, the check's event note). Never raises for what a re-sent
+    task could not mend either: runs unreadable since grading (arrays deleted) are recorded as such."""
+    try:
+        results = {run.name: stored_result(run) for run in submission.case_runs}
+    except Exception as exc:  # noqa: BLE001 - recorded in both events; the grade stands and is complete
+        why = f"runs unreadable: {type(exc).__name__}: {exc}"
+        return None, f"figures failed: {why}", f"lab check failed: {why}"
+    figures_note, figures = draw_figures(submission.id, results)
+    reused = {run.name: run.reused_from_id for run in submission.case_runs if run.reused_from_id}
+    check, check_note = lab_check(results, figures=figures, rubric=book, reused=reused,
+                                  artifacts_dir=settings.artifacts_dir)
+    return check, figures_note, check_note
+
+
 def draw_figures(submission_id: int, results: dict) -> tuple[str, list]:
-    """The lab figures of a submission's results, drawn before its grade is stored so a graded submission has them.
+    """The lab figures of a submission's results, drawn once its grade is stored (`complete_grade`).
 
     Failed case runs are passed too, so each figure names what it could not draw. A drawing failure never blocks
     or changes the grade: it is recorded (the returned note becomes an event) and the pages show no figures.

@@ -38,10 +38,14 @@ def run_case_run(case_run_id: int, attempt: int) -> None:
 
 @app.task(name="worker.tasks.grade_submission", **RETRY)
 def grade_submission(submission_id: int) -> None:
-    from worker.grading import grade_submission as grade
+    """Store the grade, then complete it with its figures and lab check (worker.grading). A redelivery after a crash
+    between the two finds the grade stored and only completes it."""
+    from worker.grading import complete_grade, grade_submission as grade
 
     with new_session() as session:
         grade(session=session, submission_id=submission_id)
+    with new_session() as session:
+        complete_grade(session=session, submission_id=submission_id)
 
 
 @worker_process_shutdown.connect

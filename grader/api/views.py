@@ -41,6 +41,7 @@ def submission_public(submission: Submission, session: Session, user: User | Non
         id=submission.id, lesson=submission.lesson, student=submission.student.name, status=submission.status,
         force_rerun=submission.force_rerun, error=submission.error, progress=progress(submission),
         created_at=submission.created_at, updated_at=submission.updated_at, graded_at=submission.graded_at,
+        report_complete=None if grade is None else grade.completed_at is not None,
         total=shown["total"] if shown else None, max_total=shown["max_total"] if shown else None,
         pending=shown.get("pending") if shown else None,
         assignment_id=submission.assignment_id, attempt=submission.attempt, late_seconds=submission.late_seconds,

@@ -58,17 +58,22 @@ def distinct_configs(sheets: list[dict]) -> int:
     return len(seen)
 
 
-def _finished(engine) -> tuple[int, int, datetime | None]:
-    from grader.models import Submission
+def _finished(engine) -> tuple[int, int, int, datetime | None, datetime | None]:
+    """(graded, failed, grades whose figures and lab check are still being drawn, last grade stored, last grade
+    completed)."""
+    from grader.models import Grade, Submission
 
     with Session(engine) as session:
         rows = dict(session.execute(select(Submission.status, func.count()).group_by(Submission.status)).all())
         last = session.scalar(select(func.max(Submission.graded_at)))
-    return rows.get("graded", 0), rows.get("failed", 0), last
+        drawing = session.scalar(select(func.count()).select_from(Grade).where(Grade.completed_at.is_(None)))
+        completed = session.scalar(select(func.max(Grade.completed_at)))
+    return rows.get("graded", 0), rows.get("failed", 0), drawing, last, completed
 
 
 def bench_class(stack, size: int, log: Callable[[str], None] = print) -> dict:
-    """Every student of the stack's course (size of them) submits once, back to back; wait for every grade."""
+    """Every student of the stack's course (size of them) submits once, back to back; wait for every grade and its
+    figures and lab check. The class's time is to the last stored grade; `complete_s` to the last report complete."""
     sheets = class_sheets(stack.students[:size])
     started_at = datetime.now(UTC).replace(tzinfo=None)
     started = time.monotonic()
@@ -79,17 +84,18 @@ def bench_class(stack, size: int, log: Callable[[str], None] = print) -> dict:
     posted_s = time.monotonic() - started
     deadline = started + WAIT_LIMIT_S * max(1, size // 20)
     while True:
-        graded, failed, last = _finished(stack.engine)
-        if graded + failed >= size:
+        graded, failed, drawing, last, completed = _finished(stack.engine)
+        if graded + failed >= size and not drawing:
             break
         if stack.worker.poll() is not None:
             raise BenchFailure(f"class of {size}: the worker exited ({stack.worker.returncode}) with {graded} graded")
         if time.monotonic() > deadline:
             raise BenchFailure(f"class of {size}: {graded} graded, {failed} failed when the wait limit passed")
-        log(f"  {graded} graded, {failed} failed ({time.monotonic() - started:.0f} s)")
+        log(f"  {graded} graded ({drawing} drawing figures), {failed} failed ({time.monotonic() - started:.0f} s)")
         time.sleep(5 if size > 50 else 2)
     total_s = (last - started_at).total_seconds()
     two_factor = sum(1 for i in range(size) if i % TWO_FACTOR_EVERY == TWO_FACTOR_EVERY - 1)
     return {"stack": stack.kind, "submissions": size, "graded": graded, "failed": failed,
             "distinct_configs": distinct_configs(sheets), "two_factor": two_factor, "posting_s": posted_s,
-            "total_s": total_s, "per_submission_s": total_s / size}
+            "total_s": total_s, "per_submission_s": total_s / size,
+            "complete_s": (completed - started_at).total_seconds() if completed else None}

@@ -35,7 +35,7 @@ def bench_memory(stack, cases: int, log: Callable[[str], None] = print) -> dict:
     samples = [{"cases": 0, "rss_mb": worker_rss(stack.worker.pid)}]
     done = 0
     while done < cases:
-        _, state = time_submission(client, sheet, worker=stack.worker, force_rerun=True)
+        state = time_submission(client, sheet, worker=stack.worker, force_rerun=True).state
         done += state["progress"]["total"]
         samples.append({"cases": done, "rss_mb": worker_rss(stack.worker.pid)})
         total = sum(samples[-1]["rss_mb"].values())

@@ -31,7 +31,7 @@ def _graded_submission(stack) -> tuple[int, str]:
     from grader.benchmark.submission import reference_sheet, time_submission
 
     who = stack.students[0]
-    _, state = time_submission(stack.client(who), reference_sheet(), worker=stack.worker)
+    state = time_submission(stack.client(who), reference_sheet(), worker=stack.worker).state
     return state["id"], who
 
 

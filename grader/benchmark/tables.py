@@ -35,10 +35,14 @@ def format_submission(f: dict) -> list[str]:
             f"median of {f['repeats']}:",
             f"  first on a just-started worker {f['first_s']:8.2f} s",
             f"  cold (force_rerun)             {f['cold_s']:8.2f} s   {verdict('submission_cold_s', f['cold_s'])}",
-            *([f"    until the last case finished {f['cold_cases_s']:6.2f} s, then grading (rubric, figures, "
-               f"lab check) {f['cold_grading_s']:.2f} s"] if "cold_cases_s" in f else []),
+            *([f"    until the last case finished {f['cold_cases_s']:6.2f} s, then the rubric "
+               f"{f['cold_rubric_s']:.2f} s"] if "cold_rubric_s" in f else []),
+            *([f"    figures and lab check stored   {f['cold_complete_s']:6.2f} s after the POST (drawn after the "
+               f"grade)"] if "cold_complete_s" in f else []),
             f"  fully reused                   {f['reused_s']:8.2f} s   "
             f"{verdict('submission_reused_s', f['reused_s'])}",
+            *([f"    figures and lab check stored   {f['reused_complete_s']:6.2f} s after the POST"]
+              if "reused_complete_s" in f else []),
             f"  cold / reused                  {f['cold_s'] / f['reused_s']:8.1f} x"]
 
 
@@ -53,6 +57,8 @@ def format_class(rows: list[dict]) -> list[str]:
         lines.append(f"  {f['stack']:10s} {f['submissions']:5d} {f['graded']:6d} {f['failed']:6d} "
                      f"{f['distinct_configs']:7d} {f['two_factor']:8d} {f['posting_s']:7.1f}s {f['total_s']:7.1f}s "
                      f"{f['per_submission_s']:7.2f}s  {verdict('class_s', projected, partial=partial)}")
+    lines += [f"  {f['stack']:10s} last figures and lab check stored {f['complete_s']:.1f} s after the first POST"
+              for f in rows if f.get("complete_s") is not None]
     if len(rows) == 2:
         lines.append(f"  {rows[0]['stack']} / {rows[1]['stack']}: {rows[0]['total_s'] / rows[1]['total_s']:.2f}x")
     return lines

@@ -111,7 +111,7 @@ def shown_grade(session, submission: Submission, user) -> tuple[Grade | None, bo
     return Grade(submission_id=grade.submission_id, rubric_lesson=grade.rubric_lesson,
                  rubric_version=grade.rubric_version, rubric_hash=grade.rubric_hash, total=report["total"],
                  max_total=report["max_total"], report=report, execution_s=grade.execution_s,
-                 created_at=grade.created_at), True
+                 created_at=grade.created_at, completed_at=grade.completed_at), True
 
 
 @router.get("/submissions", response_class=HTMLResponse)

@@ -130,8 +130,13 @@ class ReportView:
         return [f for f in self.config_findings if "too many inputs changed" in f]
 
     @property
+    def completing(self) -> bool:
+        """Graded, and the figures and lab check of its grade are being drawn (worker.grading.complete_grade)."""
+        return self.grade is not None and self.grade.completed_at is None
+
+    @property
     def finished(self) -> bool:
-        return self.submission.status in ("graded", "failed")
+        return self.submission.status in ("graded", "failed") and not self.completing
 
 
 def _elapsed(run: CaseRun, now: datetime) -> float | None:

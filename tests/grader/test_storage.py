@@ -53,6 +53,50 @@ def test_migrations_0006_to_0008_go_down_and_up(tmp_path):
     down_to_0005_and_up(f"sqlite:///{tmp_path / 'm.db'}")
 
 
+def test_migration_0009_makes_every_grade_stored_before_it_complete(tmp_path):
+    """Grades stored before 0009 had their figures and lab check drawn before they were stored: complete, as of
+    when they were made. One stored after it by a worker still drawing stays incomplete."""
+    from alembic import command
+    from alembic.config import Config
+    from sqlalchemy import select, text
+    from sqlalchemy.orm import Session
+
+    from grader import crud
+    from grader.core.db import MIGRATIONS, make_engine, migrate
+    from grader.models import Grade, User
+    from tests.factories import create_people, reference_sheet
+
+    url = f"sqlite:///{tmp_path / 'm.db'}"
+    migrate(url)
+    engine = make_engine(url)
+    with Session(engine) as session:
+        create_people(session, course="l03", other_course="other")
+        alice = session.scalar(select(User).where(User.name == "alice"))
+        submission = crud.create_submission(session=session, student=alice, lesson="L03", sheet=reference_sheet(),
+                                            specs=[], force_rerun=False)
+        session.flush()
+        session.add(Grade(submission_id=submission.id, rubric_lesson="L03", rubric_version="2", rubric_hash="x",
+                          total=1, max_total=2, report={}))
+        session.commit()
+        submission_id = submission.id
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS))
+    config.set_main_option("sqlalchemy.url", url)
+    command.downgrade(config, "0008")
+    command.upgrade(config, "head")
+    with engine.connect() as conn:
+        created, completed = conn.execute(text("SELECT created_at, completed_at FROM grades")).one()
+    assert completed is not None and completed == created
+    with Session(engine) as session:
+        session.get(Grade, 1).superseded_at = session.get(Grade, 1).created_at
+        session.flush()
+        session.add(Grade(submission_id=submission_id, rubric_lesson="L03", rubric_version="3", rubric_hash="y",
+                          total=1, max_total=2, report={}, completed_at=None))
+        session.commit()
+        assert session.scalar(select(Grade.completed_at).where(Grade.id == 2)) is None
+    engine.dispose()
+
+
 def test_production_refuses_embedded_and_placeholder_urls():
     from grader.settings import Settings
 
