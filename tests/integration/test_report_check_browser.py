@@ -87,6 +87,42 @@ def test_a_grade_stored_before_the_lab_check_says_so(browser, stack, graded):
             session.commit()
 
 
+def test_a_grade_whose_figures_are_being_drawn_shows_the_score_and_refreshes_until_they_are(browser, stack, graded):
+    """The state the worker leaves between storing a grade and completing it (worker.grading): the score is final,
+    the check and the figures are not there yet, and the page says so and refreshes itself."""
+    from sqlalchemy.orm.attributes import flag_modified
+
+    submission = graded["bob"]["id"]
+    with Session(stack.engine) as session:
+        grade = session.scalar(select(Grade).where(Grade.submission_id == submission))
+        saved, completed = grade.report["check"], grade.completed_at
+        grade.report = {**grade.report, "check": None}
+        grade.completed_at = None
+        flag_modified(grade, "report")
+        session.commit()
+        total = grade.total
+    try:
+        page = signed_in(browser, stack, "bob")
+        page.goto(f"{stack.url}/submissions/{submission}")
+        page.screenshot(path=str(SHOTS / "report-figures-being-drawn.png"), full_page=False)
+        assert page.locator("#total .big").inner_text() == f"{total:g}"
+        line = page.locator("#check-line").inner_text()
+        assert "Your grade above is stored and final" in line and "being drawn" in line, line
+        assert page.locator('meta[http-equiv="refresh"]').count() == 1
+        assert page.locator("#lab-check").count() == 0 and page.locator("text=Grading in progress").count() == 0
+        state = stack.client("bob").submission(submission)
+        assert state["status"] == "graded" and state["report_complete"] is False
+    finally:
+        with Session(stack.engine) as session:
+            grade = session.scalar(select(Grade).where(Grade.submission_id == submission))
+            grade.report, grade.completed_at = {**grade.report, "check": saved}, completed
+            flag_modified(grade, "report")
+            session.commit()
+    page.reload()
+    assert page.locator("#check-line").inner_text().startswith(saved["verdict_line"])
+    assert page.locator('meta[http-equiv="refresh"]').count() == 0
+
+
 def test_a_lane_whose_cube_tumbles_is_marked_with_why_its_stop_is_not_a_sliding_stop(browser, stack, graded):
     """Bob's table exercise raises table friction to 0.90 (one factor): on the pinned engine the cubes then pitch over
     their front edge (tests/worker/test_case_process.py), and the page and the figure must say so in words."""
