@@ -117,6 +117,17 @@ def rubric_v3(**tolerance_values: float) -> dict:
     return content
 
 
+def mark_measured(run, result, *, artifact_dir=None) -> None:
+    """Record a real CaseResult on a case run as the worker leaves a measured run: done, ok, its provenance, metrics
+    and arrays' folder (`artifact_dir`, default where the result was written)."""
+    from grader.models import utcnow
+
+    run.status, run.result_status, run.artifact_dir = "done", "ok", str(artifact_dir or result.out_dir)
+    run.provenance = result.provenance.model_dump(mode="json")
+    run.metrics = result.metrics.model_dump(mode="json")
+    run.actual_backend, run.wall_s, run.finished_at = result.provenance.actual_backend, result.wall_s, utcnow()
+
+
 def store_lesson_runs(session, measured: dict, *, by: str) -> dict[str, int]:
     """Store the lesson's own cases (rubric.scoring.LESSON_RUNS) as measured (`measured`: real CaseResults by name),
     as the done case runs of one submission by user `by` and their reusable Measurements, as a worker that ran them
@@ -136,11 +147,7 @@ def store_lesson_runs(session, measured: dict, *, by: str) -> dict[str, int]:
                                      specs=[BASELINE_CASES[name] for name in LESSON_RUNS], force_rerun=False)
     session.flush()
     for run in earlier.case_runs:
-        result = measured[run.name]
-        run.status, run.result_status, run.artifact_dir = "done", "ok", str(result.out_dir)
-        run.provenance = result.provenance.model_dump(mode="json")
-        run.metrics = result.metrics.model_dump(mode="json")
-        run.actual_backend, run.wall_s = result.provenance.actual_backend, result.wall_s
+        mark_measured(run, measured[run.name])
         inputs = reuse.key_inputs(run.spec, backend=run.backend, precision=run.precision)
         run.content_key = reuse.content_key(inputs)
         session.add(Measurement(content_key=run.content_key, key_inputs=inputs, case_run_id=run.id,

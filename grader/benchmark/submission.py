@@ -28,15 +28,15 @@ def _utcnow() -> datetime:
     return datetime.now(UTC).replace(tzinfo=None)
 
 
-def wait_graded(client, submission_id: int, *, poll_s: float = 0.1, worker=None, complete: bool = False) -> dict:
-    """Poll until graded (`complete`: and its figures and lab check stored); raise BenchFailure on failed, past
-    WAIT_LIMIT_S, or when `worker` (a Popen) exited."""
+def wait_graded(client, submission_id: int, *, poll_s: float = 0.1, worker=None) -> dict:
+    """Poll until graded with its figures and lab check stored (graded_at is not moved by them); raise BenchFailure
+    on failed, past WAIT_LIMIT_S, or when `worker` (a Popen) exited."""
     deadline = time.monotonic() + WAIT_LIMIT_S
     while True:
         if worker is not None and worker.poll() is not None:
             raise BenchFailure(f"the worker exited ({worker.returncode}) with submission {submission_id} unfinished")
         state = client.submission(submission_id)
-        if state["status"] == "graded" and (not complete or state["report_complete"]):
+        if state["status"] == "graded" and state["report_complete"]:
             return state
         if state["status"] == "failed":
             raise BenchFailure(f"submission {submission_id} failed: {state['error']}")
@@ -85,10 +85,9 @@ def time_submission(client, sheet: dict, *, worker=None, **options) -> Timed:
     idle worker)."""
     posted_at = _utcnow()
     created = client.submit(sheet, **options)
-    graded = wait_graded(client, created["id"], worker=worker)
-    state = wait_graded(client, created["id"], worker=worker, complete=True)
+    state = wait_graded(client, created["id"], worker=worker)
     complete_at = _event_at(client.events(state["id"]), "lab-check", state["id"])
-    return Timed(graded_after(graded, posted_at), (complete_at - posted_at).total_seconds(), state)
+    return Timed(graded_after(state, posted_at), (complete_at - posted_at).total_seconds(), state)
 
 
 def bench_submission(stack, repeats: int, log: Callable[[str], None] = print) -> dict:

@@ -11,7 +11,7 @@ from sqlalchemy import select
 
 from rubric import CHECK_CASES
 
-from tests.factories import reference_sheet, sheet_results
+from tests.factories import mark_measured, reference_sheet, sheet_results
 
 
 def _submission_ready_to_grade(api, measured) -> int:
@@ -30,10 +30,7 @@ def _submission_ready_to_grade(api, measured) -> int:
             result = results[run.name]
             folder = settings.artifacts_dir / "case-runs" / str(run.id)  # where a worker keeps a run's evidence
             shutil.copytree(result.out_dir, folder)
-            run.status, run.result_status, run.artifact_dir = "done", "ok", str(folder)
-            run.provenance = result.provenance.model_dump(mode="json")
-            run.metrics = result.metrics.model_dump(mode="json")
-            run.actual_backend, run.wall_s, run.finished_at = result.provenance.actual_backend, result.wall_s, utcnow()
+            mark_measured(run, result, artifact_dir=folder)
         submission.status, submission.grading_at = "grading", utcnow()
         session.commit()
     return submission_id
