@@ -1,5 +1,9 @@
 """The Celery app: one queue per backend (cpu, rocm, cuda) plus `grade`; reliability options in one place.
 
+A grade's figures and lab check (`complete_grade`, drawn after the grade is stored) go on the cpu queue at the lowest
+priority (grader.core.lifecycle.FIGURES_PRIORITY): a CPU worker draws them when no case waits, so under a deadline's
+load the cases and grades of every submission come before any figure.
+
 Worker commands (one per queue; concurrency 1 because each slot holds a ~0.8 GB warm Genesis process), built by
 `worker_argv` for `grader worker` and the embedded service:
   cpu   grader worker --queue cpu --queue grade
@@ -54,12 +58,14 @@ BACKEND_QUEUES = ("cpu", "rocm", "cuda")
 GRADE_QUEUE = "grade"
 RUN_TASK = "worker.tasks.run_case_run"
 GRADE_TASK = "worker.tasks.grade_submission"
+COMPLETE_TASK = "worker.tasks.complete_grade"
+FIGURES_QUEUE = "cpu"  # figures are CPU work, drawn behind the waiting case runs (see the module's docstring)
 
 app = Celery("grader", broker=settings.broker_url, include=["worker.tasks"])
 app.conf.update(
     task_queues=[Queue(name) for name in (*BACKEND_QUEUES, GRADE_QUEUE)],
     # A case run's queue is its requested backend, given explicitly at send time; grading has its own queue.
-    task_routes={GRADE_TASK: {"queue": GRADE_QUEUE}},
+    task_routes={GRADE_TASK: {"queue": GRADE_QUEUE}, COMPLETE_TASK: {"queue": FIGURES_QUEUE}},
     task_default_queue="cpu",
     task_create_missing_queues=False,
     # Ack only after the task finished; a worker process lost mid-case puts the message back.

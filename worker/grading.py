@@ -1,10 +1,11 @@
-"""Grade a submission once its last case run finished, in two steps of the `grade_submission` task:
+"""Grade a submission once its last case run finished, in two tasks (worker.tasks):
 
 1. `grade_submission`: the rubric engine on the stored measurements; the grade (scores, verdicts, feedback) is
    stored and the submission is 'graded' as soon as it has run (about 0.3 s for L03);
 2. `complete_grade`: the lab figures drawn from the same results (never inside an API request), then the lab check
    (L03 CHECK line) on the submission's own runs, added to the stored grade, which is then complete. Drawing takes
-   a few seconds; a student reads the score meanwhile and the report page says the rest is being drawn.
+   a few seconds; a student reads the score meanwhile and the report page says the rest is being drawn. Its task
+   waits on the cpu queue behind every case run (the lowest priority), so at a deadline the grades come first.
 
 Both are idempotent: a re-sent grade task (a worker killed while drawing; the reconciler re-sends it for a grade
 left incomplete) completes what is missing and never grades twice. State changes go through

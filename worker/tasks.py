@@ -15,7 +15,7 @@ from grader.core import lifecycle
 from grader.core.db import new_session
 from grader.settings import settings
 from worker import slot
-from worker.celery_app import GRADE_QUEUE, app
+from worker.celery_app import FIGURES_QUEUE, GRADE_QUEUE, app
 
 INFRA_ERRORS = (DatabaseError, BrokerError, OSError)
 RETRY = dict(autoretry_for=INFRA_ERRORS, max_retries=settings.max_infra_retries, retry_backoff=2,
@@ -38,14 +38,23 @@ def run_case_run(case_run_id: int, attempt: int) -> None:
 
 @app.task(name="worker.tasks.grade_submission", **RETRY)
 def grade_submission(submission_id: int) -> None:
-    """Store the grade, then complete it with its figures and lab check (worker.grading). A redelivery after a crash
-    between the two finds the grade stored and only completes it."""
-    from worker.grading import complete_grade, grade_submission as grade
+    """Store the grade, then send its completion (figures and lab check) behind the waiting case runs. Sent even when
+    the grade was stored already: a redelivery after a crash, or the reconciler re-sending the grade task for a grade
+    left incomplete, must still get it completed (completing twice is a no-op)."""
+    from worker.grading import grade_submission as grade
 
     with new_session() as session:
         grade(session=session, submission_id=submission_id)
+    complete_grade.apply_async(args=[submission_id], queue=FIGURES_QUEUE, priority=lifecycle.FIGURES_PRIORITY)
+
+
+@app.task(name="worker.tasks.complete_grade", **RETRY)
+def complete_grade(submission_id: int) -> None:
+    """Draw the figures of a stored grade and add its lab check (worker.grading.complete_grade), once."""
+    from worker.grading import complete_grade as complete
+
     with new_session() as session:
-        complete_grade(session=session, submission_id=submission_id)
+        complete(session=session, submission_id=submission_id)
 
 
 @worker_process_shutdown.connect

@@ -22,10 +22,11 @@ from grader.settings import settings
 
 TERMINAL = ("done", "failed")
 HOST = socket.gethostname()
-# Where a re-sent run goes in its queue (kombu's Redis and filesystem transports serve the lowest number first; Redis
+# Where a message goes in its queue (kombu's Redis and filesystem transports serve the lowest number first; Redis
 # keeps one list per step of 0, 3, 6, 9): a run whose worker died mid-case first, then a queued run whose message was
-# lost (a broker restart), then new runs.
-RERUN_PRIORITY, REQUEUED_PRIORITY, NEW_PRIORITY = 0, 3, 6
+# lost (a broker restart), then new runs, and last the figures and lab check of a grade already stored (they go on
+# the cpu queue too, so a worker draws them only when no case waits: at a deadline every grade comes first).
+RERUN_PRIORITY, REQUEUED_PRIORITY, NEW_PRIORITY, FIGURES_PRIORITY = 0, 3, 6, 9
 
 
 def _pid_alive(pid: int | None) -> bool:

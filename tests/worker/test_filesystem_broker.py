@@ -4,7 +4,20 @@ from __future__ import annotations
 
 import os
 
+import pytest
 from kombu import Connection
+from kombu.transport.virtual import BrokerState
+
+
+@pytest.fixture(autouse=True)
+def fresh_broker_state(monkeypatch):
+    """kombu keeps the filesystem transport's declared bindings in one class-level state per process, written to a
+    folder's control files only on first declaration: a later test's new folder would get no binding for a queue an
+    earlier test declared, and its messages would go nowhere. A service process has one folder; each test here has
+    its own, so each gets its own state."""
+    from kombu.transport import filesystem
+
+    monkeypatch.setattr(filesystem.Transport, "global_state", BrokerState())
 
 
 def test_a_resent_run_is_read_before_the_runs_queued_earlier(tmp_path):
@@ -29,6 +42,29 @@ def test_a_resent_run_is_read_before_the_runs_queued_earlier(tmp_path):
             message.ack()
         assert read == ["rerun", "requeued", "new 1", "new 2", "new 3"]
         assert connection.SimpleQueue("grade").get(timeout=1).payload == "a grade task"
+
+
+def test_a_grades_figures_are_read_after_every_case_run_queued_before_or_after_them(tmp_path):
+    """The completion of a stored grade waits on the cpu queue behind the case runs (worker.celery_app): at a deadline
+    a worker measures every waiting case, and so stores every grade, before it draws a figure."""
+    import worker.celery_app  # noqa: F401 - makes filesystem:// this project's transport
+    from grader.core.lifecycle import FIGURES_PRIORITY, NEW_PRIORITY, REQUEUED_PRIORITY, RERUN_PRIORITY
+    from worker.celery_app import FIGURES_QUEUE
+
+    folder = str(tmp_path)
+    options = {"data_folder_in": folder, "data_folder_out": folder, "control_folder": str(tmp_path / "control")}
+    with Connection("filesystem://", transport_options=options) as connection:
+        queue = connection.SimpleQueue(FIGURES_QUEUE)
+        for body, priority in (("figures of grade 1", FIGURES_PRIORITY), ("new run", NEW_PRIORITY),
+                               ("figures of grade 2", FIGURES_PRIORITY), ("requeued run", REQUEUED_PRIORITY),
+                               ("rerun", RERUN_PRIORITY), ("newer run", NEW_PRIORITY)):
+            queue.put(body, priority=priority)
+        read = []
+        for _ in range(6):
+            message = queue.get(timeout=1)
+            read.append(message.payload)
+            message.ack()
+        assert read == ["rerun", "requeued run", "new run", "newer run", "figures of grade 1", "figures of grade 2"]
 
 
 def test_a_message_file_appears_only_once_written(tmp_path, monkeypatch):
