@@ -1,0 +1,39 @@
+"""At a deadline the grades come first: the figures and lab check of a stored grade wait on the cpu queue behind
+every case run (worker.celery_app), on the real stack (Redis, PostgreSQL, one Celery worker, real Genesis cases)."""
+
+from __future__ import annotations
+
+import pytest
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from grader.models import Event
+from tests.factories import reference_sheet
+from tests.integration.helpers import WAIT_LIMIT_S, case_runs, submit_and_wait
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+
+def _events(stack, submission_id: int) -> list[Event]:
+    with Session(stack.engine) as session:
+        return session.scalars(select(Event).where(Event.submission_id == submission_id).order_by(Event.id)).all()
+
+
+def test_a_grade_is_stored_between_cases_and_its_figures_drawn_after_the_cases_queued_meanwhile(stack):
+    submit_and_wait(stack, reference_sheet())  # measured (or reused): the next plain sheet needs no case run
+    client = stack.client()
+    busy = client.submit(reference_sheet(), force_rerun=True)  # 9 case runs queued on cpu, the worker on the first
+    reused = client.submit(reference_sheet())  # every case finished in the POST: only its grade task is sent
+    assert all(run.reused_from_id is not None and run.tries == 0 for run in case_runs(stack, reused["id"]))
+    for submission_id in (busy["id"], reused["id"]):
+        final = client.wait(submission_id, poll_s=0.5, timeout_s=WAIT_LIMIT_S)
+        assert (final["status"], final["report_complete"]) == ("graded", True), final
+
+    busy_runs_done = [e.id for e in _events(stack, busy["id"]) if e.case_run_id is not None and e.state == "done"]
+    assert len(busy_runs_done) == 9
+    states = {e.state: e.id for e in _events(stack, reused["id"])}
+    # Event ids are the order the one worker wrote them: the reused sheet's grade came while the forced sheet's
+    # cases were still being measured, and its figures only after the last of them.
+    assert states["graded"] < busy_runs_done[-1], (states, busy_runs_done)
+    assert states["figures"] > busy_runs_done[-1], (states, busy_runs_done)
+    assert states["lab-check"] > states["figures"]
