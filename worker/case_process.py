@@ -186,7 +186,9 @@ class WarmCaseProcess:
             [sys.executable, "-m", "worker.warm_process", str(write_fd), *warm_up],
             stdin=subprocess.PIPE,
             stdout=self._log,
-            stderr=self._log,
+            # The worker's own log: what the process says before its first case (its warm-up, a crash at start).
+            # Each case's output goes to that case's stdout.txt / stderr.txt (worker.warm_process).
+            stderr=None,
             pass_fds=(write_fd,),
             env=_case_process_env(),
             text=True,

@@ -34,10 +34,15 @@ def _exit_on_sigterm(signum, _frame) -> None:
     raise SystemExit(128 + signum)
 
 
+WARM_UP_CASES = ("N1", "friction-baseline")  # the lesson's two scene structures
+WARM_UP_DONE = "warm case process warmed up"  # the line it writes to the worker's log when done
+
+
 def warm_up(backend: str, reuse: bool) -> None:
     """Build and run the lesson's two scene structures on `backend` into a folder removed after, before any case:
     Genesis imported and initialised, kernels loaded, and (with reuse) both scenes kept for the first cases. What it
-    did, or why it failed, goes to this process's own log; a real case never depends on it."""
+    did, or why it failed, goes to its stderr, the worker's own log (one WARM_UP_DONE line); a real case never
+    depends on it."""
     import tempfile
     import time
 
@@ -46,18 +51,20 @@ def warm_up(backend: str, reuse: bool) -> None:
     from .engine import run_case_in_genesis
 
     started = time.perf_counter()
+    statuses = {}
     with tempfile.TemporaryDirectory(prefix="warm-up-") as folder:
-        for name in ("N1", "friction-baseline"):
+        for name in WARM_UP_CASES:
             spec = BASELINE_CASES[name].model_copy(update={"backend": backend})
             out_dir = Path(folder) / name
             out_dir.mkdir()
             try:
-                status = run_case_in_genesis(spec, out_dir, mode="warm", reuse=reuse)
+                statuses[name] = run_case_in_genesis(spec, out_dir, mode="warm", reuse=reuse)
             except Exception:  # noqa: BLE001 - logged; the first real case meets the same fault and records it
                 traceback.print_exc()
-                status = "raised"
-            print(f"warm-up {name} on {backend}: exit status {status}, {time.perf_counter() - started:.1f} s since "
-                  "the warm-up began", file=sys.stderr, flush=True)
+                statuses[name] = "raised"
+    outcome = ", ".join(f"{name} exit {status}" for name, status in statuses.items())
+    print(f"{WARM_UP_DONE} on {backend} in {time.perf_counter() - started:.1f} s ({outcome}; pid {os.getpid()})",
+          file=sys.stderr, flush=True)
 
 
 def main(reply_fd: int, warm_up_backend: str | None = None, reuse: bool = False) -> int:
