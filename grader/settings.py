@@ -37,6 +37,12 @@ class Settings(BaseSettings):
     # substeps, bodies) instead of building anew; only friction and per-case loop settings change. On because
     # tests/worker/test_scene_reuse.py proves the arrays equal, sample for sample, to a fresh scene's.
     scene_reuse: bool = True
+    # A worker process starts its warm case process when it starts, and that process builds the lesson's two scene
+    # structures (N1, friction-baseline) on this backend before it reads a case: the first case after a deploy or a
+    # restart no longer pays ~15 s of import, init and kernel loading. "off": started on the first case instead. A
+    # ROCm worker sets rocm (docker-compose.yml); a warm-up that fails is logged, and the first case then fails
+    # visibly as it would have.
+    warm_up_backend: Literal["cpu", "rocm", "cuda", "off"] = "cpu"
     # The API runs sync handlers and dependencies on this many threads (anyio's default is 40) and admits this many
     # requests at once; the rest wait unserved, holding no thread and no connection. Each engine's pool keeps as many
     # connections, so an admitted request never waits on the pool while holding a connection that a request waiting

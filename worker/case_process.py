@@ -153,10 +153,13 @@ class WarmCaseProcess:
     """One long-lived Genesis process building a scene per case (or reusing one of the same structure); recycled after
     max_cases or any failure."""
 
-    def __init__(self, *, max_cases: int = WARM_MAX_CASES, reuse_scenes: bool = False):
+    def __init__(self, *, max_cases: int = WARM_MAX_CASES, reuse_scenes: bool = False,
+                 warm_up_backend: str | None = None):
         self.max_cases = max_cases
         # Reset and reuse a scene built for an earlier case of the same structure (worker.engine.structure_key).
         self.reuse_scenes = reuse_scenes
+        # Each process started builds the lesson's scene structures on this backend first (worker.warm_process).
+        self.warm_up_backend = warm_up_backend
         self.cases_run = 0
         self.processes_started = 0
         self._proc: subprocess.Popen | None = None
@@ -169,14 +172,23 @@ class WarmCaseProcess:
     def __exit__(self, *exc) -> None:
         self.close()
 
+    def start(self) -> None:
+        """Start the process now rather than on the first case (it warms up, if asked, while nothing waits on it)."""
+        if self._proc is None or self._proc.poll() is not None:
+            self.close()
+            self._start()
+
     def _start(self) -> None:
         read_fd, write_fd = os.pipe()
         self._log = tempfile.TemporaryFile()
+        warm_up = [self.warm_up_backend, str(int(self.reuse_scenes))] if self.warm_up_backend else []
         self._proc = subprocess.Popen(
-            [sys.executable, "-m", "worker.warm_process", str(write_fd)],
+            [sys.executable, "-m", "worker.warm_process", str(write_fd), *warm_up],
             stdin=subprocess.PIPE,
             stdout=self._log,
-            stderr=self._log,
+            # The worker's own log: what the process says before its first case (its warm-up, a crash at start).
+            # Each case's output goes to that case's stdout.txt / stderr.txt (worker.warm_process).
+            stderr=None,
             pass_fds=(write_fd,),
             env=_case_process_env(),
             text=True,

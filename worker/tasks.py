@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import logging
 
-from celery.signals import worker_init, worker_process_shutdown
+from celery.signals import worker_init, worker_process_init, worker_process_shutdown
 from kombu.exceptions import OperationalError as BrokerError
 from sqlalchemy.exc import OperationalError as DatabaseError
 
@@ -60,6 +60,11 @@ def complete_grade(submission_id: int) -> None:
 @worker_process_shutdown.connect
 def _close_slot(**_) -> None:
     slot.close_slot()
+
+
+@worker_process_init.connect
+def _start_slot(**_) -> None:
+    slot.start_slot()  # returns at once (Celery gives a process's init a few seconds)
 
 
 @worker_init.connect

@@ -1,5 +1,7 @@
 """Warm case process: one long-lived Genesis process that builds a scene per case, or resets a kept one (reuse).
 
+Started with a backend to warm up, it first builds the lesson's two scene structures (`warm_up`), then serves.
+
 Protocol: the parent writes one JSON line per case ({"spec": path, "out_dir": path, "reuse": bool}) on stdin; this process answers
 one JSON line ({"exit_status": int}) on the file descriptor given as argv[1]. During each case, fds 1 and 2 point at
 that case's stdout.txt / stderr.txt, so evidence is captured per case exactly as in isolated mode.
@@ -32,11 +34,46 @@ def _exit_on_sigterm(signum, _frame) -> None:
     raise SystemExit(128 + signum)
 
 
-def main(reply_fd: int) -> int:
+WARM_UP_CASES = ("N1", "friction-baseline")  # the lesson's two scene structures
+WARM_UP_DONE = "warm case process warmed up"  # the line it writes to the worker's log when done
+
+
+def warm_up(backend: str, reuse: bool) -> None:
+    """Build and run the lesson's two scene structures on `backend` into a folder removed after, before any case:
+    Genesis imported and initialised, kernels loaded, and (with reuse) both scenes kept for the first cases. What it
+    did, or why it failed, goes to its stderr, the worker's own log (one WARM_UP_DONE line); a real case never
+    depends on it."""
+    import tempfile
+    import time
+
+    from rubric.cases import BASELINE_CASES
+
+    from .engine import run_case_in_genesis
+
+    started = time.perf_counter()
+    statuses = {}
+    with tempfile.TemporaryDirectory(prefix="warm-up-") as folder:
+        for name in WARM_UP_CASES:
+            spec = BASELINE_CASES[name].model_copy(update={"backend": backend})
+            out_dir = Path(folder) / name
+            out_dir.mkdir()
+            try:
+                statuses[name] = run_case_in_genesis(spec, out_dir, mode="warm", reuse=reuse)
+            except Exception:  # noqa: BLE001 - logged; the first real case meets the same fault and records it
+                traceback.print_exc()
+                statuses[name] = "raised"
+    outcome = ", ".join(f"{name} exit {status}" for name, status in statuses.items())
+    print(f"{WARM_UP_DONE} on {backend} in {time.perf_counter() - started:.1f} s ({outcome}; pid {os.getpid()})",
+          file=sys.stderr, flush=True)
+
+
+def main(reply_fd: int, warm_up_backend: str | None = None, reuse: bool = False) -> int:
     signal.signal(signal.SIGTERM, _exit_on_sigterm)
     from .engine import run_case_in_genesis
     from .errors import EXIT_ERROR
 
+    if warm_up_backend:
+        warm_up(warm_up_backend, reuse)
     reply = os.fdopen(reply_fd, "w", buffering=1)
     for line in sys.stdin:
         request = json.loads(line)
@@ -56,4 +93,5 @@ def main(reply_fd: int) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(int(sys.argv[1])))
+    # argv: REPLY_FD [WARM_UP_BACKEND REUSE(0|1)]
+    sys.exit(main(int(sys.argv[1]), *(sys.argv[2:3]), *(bool(int(a)) for a in sys.argv[3:4])))

@@ -71,9 +71,38 @@ def _finished(engine) -> tuple[int, int, int, datetime | None, datetime | None]:
     return rows.get("graded", 0), rows.get("failed", 0), drawing, last, completed
 
 
+WARM_LIMIT_S = 300
+
+
+def wait_until_warm(stack, log: Callable[[str], None] = print) -> float | None:
+    """Wait until the worker's case process has warmed up (settings.warm_up_backend): its line in the worker's log.
+    A deadline finds workers that have been up for a while; the class is timed from there. Returns the seconds
+    waited (None: warm-up off)."""
+    from grader.settings import settings
+    from worker.warm_process import WARM_UP_DONE
+
+    if settings.warm_up_backend == "off":  # the stack's worker inherits this environment: nothing to wait for
+        log("  warm-up off (WARM_UP_BACKEND=off): the case process starts on the first case")
+        return None
+    worker_log = stack.data_dir / "worker.log"
+    started = time.monotonic()
+    while time.monotonic() - started < WARM_LIMIT_S:
+        if stack.worker.poll() is not None:
+            raise BenchFailure(f"the worker exited ({stack.worker.returncode}) before its case process warmed up")
+        done = [line for line in worker_log.read_text(errors="replace").splitlines() if WARM_UP_DONE in line]
+        if done:
+            waited = time.monotonic() - started
+            log(f"  {done[0].strip()}; {waited:.1f} s after the stack was ready")
+            return waited
+        time.sleep(0.2)
+    raise BenchFailure(f"the worker's case process did not warm up within {WARM_LIMIT_S} s (see {worker_log})")
+
+
 def bench_class(stack, size: int, log: Callable[[str], None] = print) -> dict:
-    """Every student of the stack's course (size of them) submits once, back to back; wait for every grade and its
-    figures and lab check. The class's time is to the last stored grade; `complete_s` to the last report complete."""
+    """Every student of the stack's course (size of them) submits once, back to back, once the worker's case process
+    has warmed up; wait for every grade and its figures and lab check. The class's time is to the last stored grade;
+    `complete_s` to the last report complete."""
+    warm_s = wait_until_warm(stack, log)
     sheets = class_sheets(stack.students[:size])
     started_at = datetime.now(UTC).replace(tzinfo=None)
     started = time.monotonic()
@@ -95,7 +124,7 @@ def bench_class(stack, size: int, log: Callable[[str], None] = print) -> dict:
         time.sleep(5 if size > 50 else 2)
     total_s = (last - started_at).total_seconds()
     two_factor = sum(1 for i in range(size) if i % TWO_FACTOR_EVERY == TWO_FACTOR_EVERY - 1)
-    return {"stack": stack.kind, "submissions": size, "graded": graded, "failed": failed,
+    return {"stack": stack.kind, "submissions": size, "graded": graded, "failed": failed, "warm_up_wait_s": warm_s,
             "distinct_configs": distinct_configs(sheets), "two_factor": two_factor, "posting_s": posted_s,
             "total_s": total_s, "per_submission_s": total_s / size,
             "complete_s": (completed - started_at).total_seconds() if completed else None}

@@ -59,6 +59,10 @@ def format_class(rows: list[dict]) -> list[str]:
                      f"{f['per_submission_s']:7.2f}s  {verdict('class_s', projected, partial=partial)}")
     lines += [f"  {f['stack']:10s} last figures and lab check stored {f['complete_s']:.1f} s after the first POST"
               for f in rows if f.get("complete_s") is not None]
+    lines += [f"  {f['stack']:10s} waited {f['warm_up_wait_s']:.1f} s after start for the case process to warm up"
+              if f.get("warm_up_wait_s") is not None else
+              f"  {f['stack']:10s} warm-up off: the case process started on the first case"
+              for f in rows if "warm_up_wait_s" in f]
     if len(rows) == 2:
         lines.append(f"  {rows[0]['stack']} / {rows[1]['stack']}: {rows[0]['total_s'] / rows[1]['total_s']:.2f}x")
     return lines

@@ -18,7 +18,8 @@ SUBMISSION = {"stack": "embedded", "repeats": 3, "case_runs": 9, "first_s": 90.0
 CLASS = [{"stack": "embedded", "submissions": 20, "graded": 20, "failed": 0, "distinct_configs": 36,
           "two_factor": 2, "posting_s": 3.0, "total_s": 60.0, "per_submission_s": 3.0},
          {"stack": "redis-pg", "submissions": 20, "graded": 20, "failed": 0, "distinct_configs": 36,
-          "two_factor": 2, "posting_s": 3.0, "total_s": 40.0, "per_submission_s": 2.0, "complete_s": 42.5}]
+          "two_factor": 2, "posting_s": 3.0, "total_s": 40.0, "per_submission_s": 2.0, "complete_s": 42.5,
+          "warm_up_wait_s": 12.5}]
 MEMORY = {"stack": "embedded", "cases": 54, "first_mb": 1000.0, "last_mb": 1020.0, "max_mb": 1030.0,
           "growth_pct": 2.0, "last_by_process_mb": {"1 celery": 100.0, "2 python": 920.0}, "samples": []}
 API = [{"stack": "embedded", "clients": 50, "requests_per_client": 20, "requests": 1000, "p50_ms": 20.0,
@@ -54,6 +55,7 @@ def test_tables_print_every_figure_beside_its_target():
     assert "figures and lab check stored    18.00 s after the POST (drawn after the grade)" in text
     assert "figures and lab check stored     0.90 s after the POST" in text
     assert "redis-pg   last figures and lab check stored 42.5 s after the first POST" in text
+    assert "redis-pg   waited 12.5 s after start for the case process to warm up" in text
     assert "projected to 200: 600 s from 20" in text and "embedded / redis-pg: 1.50x" in text
     assert "max    met (<= 1536 MB) (54 of 500 cases)" in text and "growth +2.0%" in text
     assert "MISSED by 10 ms (1.2x the 50 ms)" in text and "/v1/submissions/{id}" in text

@@ -61,3 +61,26 @@ def test_a_reused_scene_gives_every_sample_of_a_fresh_scene(measured, tmp_path):
         assert result.provenance.timings.build_s == 0.0
     # The table-0.30 and baseline runs share one scene yet measured different physics (else equality proves nothing).
     assert not np.array_equal(results[0].arrays["low_x"], results[1].arrays["low_x"])
+
+
+@pytest.mark.slow
+def test_a_warmed_up_process_measures_its_first_cases_in_the_scenes_it_warmed_every_sample_as_fresh(measured, tmp_path,
+                                                                                                   capfd):
+    """A worker's warm case process builds the lesson's two structures before its first case (worker.warm_process
+    `warm_up`): the first N1 and friction baseline then reuse those scenes, and must measure what a fresh scene does."""
+    from worker.warm_process import WARM_UP_DONE
+
+    with WarmCaseProcess(reuse_scenes=True, warm_up_backend="cpu") as warm:
+        warm.start()
+        results = [warm.run(spec, tmp_path / spec.name) for spec in (N1, BASELINE)]
+    # It says so in the worker's log (its inherited stderr), which is what an operator and the benchmark wait for.
+    said = [line for line in capfd.readouterr().err.splitlines() if WARM_UP_DONE in line]
+    assert len(said) == 1 and "on cpu" in said[0] and "N1 exit 0, friction-baseline exit 0" in said[0], said
+    for result in results:
+        assert result.ok, result.error
+        assert result.provenance.scene == "reused" and result.provenance.timings.build_s == 0.0, result.spec.name
+        fresh = measured[result.spec.name]
+        assert sorted(result.arrays) == sorted(fresh.arrays)
+        for field in fresh.arrays:
+            np.testing.assert_array_equal(result.arrays[field], fresh.arrays[field],
+                                          err_msg=f"{result.spec.name}.{field} (warmed-up scene vs fresh)")
