@@ -9,7 +9,9 @@ from sqlalchemy.orm import Session
 
 from grader.models import Event
 from tests.factories import reference_sheet
-from tests.integration.helpers import WAIT_LIMIT_S, case_runs, submit_and_wait
+from tests.integration.helpers import WAIT_LIMIT_S, case_runs
+
+OTHER_COURSE = "other-course"  # tests/integration/conftest.py: the stack's second course
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -19,11 +21,27 @@ def _events(stack, submission_id: int) -> list[Event]:
         return session.scalars(select(Event).where(Event.submission_id == submission_id).order_by(Event.id)).all()
 
 
+def _student_of_another_course(stack, name: str):
+    """A student of the stack's other course, so that the shared class the page tests read stays as they expect."""
+    from grader import crud
+    from grader.client import Client
+    from grader.models import Course
+
+    with Session(stack.engine) as session:
+        course = session.scalar(select(Course).where(Course.name == OTHER_COURSE))
+        user = crud.get_or_create_user(session=session, course=course, name=name, role="student")
+        token = crud.create_token(session=session, user=user)
+        session.commit()
+    return Client(stack.url, token)
+
+
 def test_a_grade_is_stored_between_cases_and_its_figures_drawn_after_the_cases_queued_meanwhile(stack):
-    submit_and_wait(stack, reference_sheet())  # measured (or reused): the next plain sheet needs no case run
-    client = stack.client()
-    busy = client.submit(reference_sheet(), force_rerun=True)  # 9 case runs queued on cpu, the worker on the first
-    reused = client.submit(reference_sheet())  # every case finished in the POST: only its grade task is sent
+    client = _student_of_another_course(stack, "olga")
+    first = client.submit(reference_sheet() | {"student": "olga"})
+    client.wait(first["id"], poll_s=0.5, timeout_s=WAIT_LIMIT_S)  # measured (or reused): the next sheet runs nothing
+    sheet = reference_sheet() | {"student": "olga"}
+    busy = client.submit(sheet, force_rerun=True)  # 9 case runs queued on cpu, the worker on the first
+    reused = client.submit(sheet)  # every case finished in the POST: only its grade task is sent
     assert all(run.reused_from_id is not None and run.tries == 0 for run in case_runs(stack, reused["id"]))
     for submission_id in (busy["id"], reused["id"]):
         final = client.wait(submission_id, poll_s=0.5, timeout_s=WAIT_LIMIT_S)
