@@ -158,7 +158,8 @@ class WarmCaseProcess:
         self.max_cases = max_cases
         # Reset and reuse a scene built for an earlier case of the same structure (worker.engine.structure_key).
         self.reuse_scenes = reuse_scenes
-        # Each process started builds the lesson's scene structures on this backend first (worker.warm_process).
+        # A process started ahead of its first case (`start`) builds the lesson's scene structures on this backend
+        # first (worker.warm_process); one started because a case is waiting does not.
         self.warm_up_backend = warm_up_backend
         self.cases_run = 0
         self.processes_started = 0
@@ -173,15 +174,16 @@ class WarmCaseProcess:
         self.close()
 
     def start(self) -> None:
-        """Start the process now rather than on the first case (it warms up, if asked, while nothing waits on it)."""
+        """Start the process now rather than on the first case; it warms up, if asked, while nothing waits on it.
+        A process started on a case (the first, or after a recycle or a failure) does not: a case is waiting."""
         if self._proc is None or self._proc.poll() is not None:
             self.close()
-            self._start()
+            self._start(warm_up=True)
 
-    def _start(self) -> None:
+    def _start(self, *, warm_up: bool = False) -> None:
         read_fd, write_fd = os.pipe()
         self._log = tempfile.TemporaryFile()
-        warm_up = [self.warm_up_backend, str(int(self.reuse_scenes))] if self.warm_up_backend else []
+        warm_up = [self.warm_up_backend, str(int(self.reuse_scenes))] if warm_up and self.warm_up_backend else []
         self._proc = subprocess.Popen(
             [sys.executable, "-m", "worker.warm_process", str(write_fd), *warm_up],
             stdin=subprocess.PIPE,
