@@ -30,7 +30,7 @@ check: $(STAMP)
 	$(VENV)/bin/grader check --backend cpu --out out/check
 
 bench: $(STAMP)
-	$(VENV)/bin/grader bench --out out/bench
+	$(PY) -m tools.bench --out out/bench
 
 clean:
 	rm -rf out

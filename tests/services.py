@@ -1,7 +1,7 @@
 """Real services for integration tests: a fresh PostgreSQL database, a Redis db, a Celery worker, the API on loopback.
 
-The process helpers live in grader.benchmark.processes (the benchmark starts the same stack) and are re-exported
-here. Outside CI a missing Redis/PostgreSQL skips the test; with CI=true it fails, so CI can never go green on skips.
+The process helpers live in tools.bench.processes (the benchmark starts the same stack) and are re-exported here.
+Outside CI a missing Redis/PostgreSQL skips the test; with CI=true it fails, so CI can never go green on skips.
 """
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 
-from grader.benchmark.processes import STARTUP_LIMIT_S, children, free_port, start_api, start_worker, stop, wait_for
-from grader.benchmark.stack import ServiceUnavailable
-from grader.benchmark.stack import postgres_database as _postgres_database
 from tests.factories import ROOT
+from tools.bench.processes import STARTUP_LIMIT_S, children, free_port, start_api, start_worker, stop, wait_for
+from tools.bench.stack import ServiceUnavailable
+from tools.bench.stack import postgres_database as _postgres_database
 
 __all__ = ["PG_ADMIN_URL", "REDIS_URL", "ROOT", "STARTUP_LIMIT_S", "children", "free_port", "postgres_database",
            "private_kernel_cache", "redis_client", "start_api", "start_worker", "stop", "unavailable",

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import yaml
 
-from grader.benchmark.cases import BenchFailure
-from grader.benchmark.stats import median
+from tools.bench.cases import BenchFailure
+from tools.bench.stats import median
 
 REFERENCE_SHEET = Path(__file__).resolve().parent.parent.parent / "examples" / "l03" / "reference.yaml"
 # Safety stop per submission only (a cold kernel cache can take minutes).

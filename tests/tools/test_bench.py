@@ -1,5 +1,5 @@
-"""`grader bench`: its statistics, target verdicts, tables, the class it submits and the JSON it writes (fast, from
-recorded figures), and one bounded real run."""
+"""`python -m tools.bench`: its statistics, target verdicts, tables, the class it submits and the JSON it writes
+(fast, from recorded figures), and one bounded real run."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import math
 import pytest
 from click.testing import CliRunner
 
-from grader.benchmark import stats, tables
-from grader.benchmark.classroom import class_sheets, distinct_configs
+from tools.bench import stats, tables
+from tools.bench.classroom import class_sheets, distinct_configs
 
 SUBMISSION = {"stack": "embedded", "repeats": 3, "case_runs": 9, "first_s": 90.0, "cold_s": 12.0, "reused_s": 0.4,
               "cold_samples_s": [12.0], "reused_samples_s": [0.4], "cold_cases_s": 7.5, "cold_rubric_s": 0.3,
@@ -72,8 +72,8 @@ def test_the_class_shares_the_baseline_and_carries_40_distinct_configs_and_a_ten
 
 
 def test_the_json_holds_each_part_under_its_name_with_the_command(tmp_path, monkeypatch):
-    from grader.benchmark import run
-    from grader.cli.bench import bench
+    from tools.bench import run
+    from tools.bench.cli import bench
 
     def fake(options, *, save, log):
         assert options.class_size == 20 and options.memory_cases == 50 and options.api_clients == 7
@@ -97,7 +97,7 @@ def test_the_json_holds_each_part_under_its_name_with_the_command(tmp_path, monk
 @pytest.mark.slow
 @pytest.mark.timeout(300)
 def test_a_tiny_real_run_measures_a_case_three_ways_and_writes_its_json(tmp_path):
-    from grader.cli.bench import bench
+    from tools.bench.cli import bench
 
     result = CliRunner().invoke(bench, ["--quick", "--only", "cases", "--cases", "N3", "--repeats", "1", "--out",
                                         str(tmp_path)])

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from grader.benchmark.stats import growth_pct
-from grader.benchmark.submission import reference_sheet, time_submission
+from tools.bench.stats import growth_pct
+from tools.bench.submission import reference_sheet, time_submission
 
 MB = 1024 * 1024
 

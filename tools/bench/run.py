@@ -1,5 +1,5 @@
-"""Runs the chosen parts of `grader bench` in order, saving each part's figures as soon as it has them, and
-returns the printed tables."""
+"""Runs the chosen parts of `python -m tools.bench` in order, saving each part's figures as soon as it has them,
+and returns the printed tables."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from grader.benchmark import tables
+from tools.bench import tables
 
 
 @dataclass
@@ -28,7 +28,7 @@ class BenchOptions:
 
 def _graded_submission(stack) -> tuple[int, str]:
     """A graded submission to read (the reference sheet), and who may read it."""
-    from grader.benchmark.submission import reference_sheet, time_submission
+    from tools.bench.submission import reference_sheet, time_submission
 
     who = stack.students[0]
     state = time_submission(stack.client(who), reference_sheet(), worker=stack.worker).state
@@ -43,12 +43,12 @@ def _api(stack, o: BenchOptions, bench_api, log) -> list[dict]:
 
 
 def run_bench(o: BenchOptions, *, save: Callable[[str, object], None], log: Callable[[str], None]) -> list[str]:
-    from grader.benchmark.cases import bench_cases, format_cases
-    from grader.benchmark.classroom import bench_class
-    from grader.benchmark.load import bench_api
-    from grader.benchmark.memory import bench_memory
-    from grader.benchmark.stack import service_stack
-    from grader.benchmark.submission import bench_submission
+    from tools.bench.cases import bench_cases, format_cases
+    from tools.bench.classroom import bench_class
+    from tools.bench.load import bench_api
+    from tools.bench.memory import bench_memory
+    from tools.bench.stack import service_stack
+    from tools.bench.submission import bench_submission
 
     out: list[str] = []
     services = o.out_dir / "services"

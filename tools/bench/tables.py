@@ -1,4 +1,4 @@
-"""The printed tables of `grader bench`, each service figure beside its issue-12 target with a verdict."""
+"""The printed tables of `python -m tools.bench`, each service figure beside its issue-12 target with a verdict."""
 
 from __future__ import annotations
 

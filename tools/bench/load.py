@@ -8,7 +8,7 @@ import asyncio
 import time
 from collections.abc import Callable
 
-from grader.benchmark.stats import latency_summary
+from tools.bench.stats import latency_summary
 
 # What a student refreshing their result reads: the submission (status, progress) and the report page.
 PATHS = ("/v1/submissions/{id}", "/submissions/{id}")

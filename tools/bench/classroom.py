@@ -12,8 +12,8 @@ from datetime import UTC, datetime
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from grader.benchmark.cases import BenchFailure
-from grader.benchmark.submission import WAIT_LIMIT_S, reference_sheet
+from tools.bench.cases import BenchFailure
+from tools.bench.submission import WAIT_LIMIT_S, reference_sheet
 
 # 20 table frictions (the lesson's 0.50 left out) and 20 extensions (dt, substeps) over the lesson's 1.5 s: 40
 # distinct modified configs, each a one-factor change of its baseline.

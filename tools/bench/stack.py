@@ -10,7 +10,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from grader.benchmark.processes import ROOT, free_port, start_api, start_worker, stop
+from tools.bench.processes import ROOT, free_port, start_api, start_worker, stop
 
 KINDS = ("embedded", "redis-pg")
 PG_ADMIN_URL = os.environ.get("BENCH_POSTGRES_URL", "postgresql+psycopg2://postgres@127.0.0.1:5432/test")

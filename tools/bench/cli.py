@@ -1,5 +1,7 @@
-"""`grader bench`: cases by execution path, one submission, a class, worker memory and API latency, measured side by
-side in one run (medians and ratios), printed with the issue-12 targets and written as JSON."""
+"""`python -m tools.bench`: cases by execution path, one submission, a class, worker memory and API latency, measured
+side by side in one run (medians and ratios), printed with the issue-12 targets and written as JSON.
+
+Run from the repository root (`make bench`): tools/ is development tooling, not installed with the grader."""
 
 from __future__ import annotations
 
@@ -26,7 +28,8 @@ def _parts(value: str) -> tuple[str, ...]:
     return parts
 
 
-@click.command()
+# -h as well as --help, as under the `grader` group it came from.
+@click.command(context_settings={"help_option_names": ["-h", "--help"]})
 @click.option("--quick", is_flag=True, help="Smaller everything, a few minutes: " + json.dumps(QUICK))
 @click.option("--only", default=",".join(PARTS), show_default=True, help="Comma-separated parts to run.")
 @click.option("--cases", default=None, help=f"Comma-separated case names (default {FULL['cases']}).")
@@ -46,9 +49,9 @@ def bench(quick: bool, only: str, cases: str | None, repeats: int | None, class_
           memory_cases: int | None, api_clients: int, api_stacks: str, api_think: str, out_dir: Path,
           json_path: Path | None) -> None:
     """Measure, print a table per part with the targets met or missed, and write the figures as JSON."""
-    from grader.benchmark.cases import BenchFailure
-    from grader.benchmark.run import BenchOptions, run_bench
-    from grader.benchmark.stack import ServiceUnavailable
+    from tools.bench.cases import BenchFailure
+    from tools.bench.run import BenchOptions, run_bench
+    from tools.bench.stack import ServiceUnavailable
 
     size = QUICK if quick else FULL
     options = BenchOptions(
@@ -60,7 +63,7 @@ def bench(quick: bool, only: str, cases: str | None, repeats: int | None, class_
         api_think_s=tuple(float(t) for t in api_think.split(",")),
         out_dir=out_dir, quick=quick)
     json_path = json_path or out_dir / "bench.json"
-    report = {"command": " ".join(["grader", *sys.argv[1:]]), "quick": quick,
+    report = {"command": " ".join(["python", "-m", "tools.bench", *sys.argv[1:]]), "quick": quick,
               "started_utc": datetime.now(UTC).isoformat(timespec="seconds"), "host": platform.node(),
               "cpus": os.cpu_count()}
 
