@@ -27,13 +27,13 @@ EXAMPLE_SHEET = ROOT / "examples" / "l03" / "reference.yaml"
 
 def bootstrap() -> dict[str, str]:
     """Migrate the embedded database and issue fresh tokens for a demo course (printed, never stored in clear)."""
-    from grader import crud
+    from grader.services import accounts
     from grader.core.db import migrate, new_session
 
     migrate()
     with new_session() as session:
-        course = crud.get_or_create_course(session=session, name="demo")
-        tokens = {role: crud.create_token(session=session, user=crud.get_or_create_user(
+        course = accounts.get_or_create_course(session=session, name="demo")
+        tokens = {role: accounts.create_token(session=session, user=accounts.get_or_create_user(
             session=session, course=course, name=role, role=role)) for role in ("student", "instructor")}
         session.commit()
     return tokens

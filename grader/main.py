@@ -10,6 +10,7 @@ from grader.api import errors
 from grader.api.admission import InFlightLimit, lifespan
 from grader.api.main import api_router
 from grader.api.routes.health import metrics_router
+from grader.pages import errors as page_errors
 from grader.pages import router as pages_router
 from grader.settings import settings
 
@@ -21,7 +22,8 @@ app = FastAPI(
     "Every endpoint except /v1/health and the docs needs a bearer token.",
     lifespan=partial(lifespan, threads=settings.api_threads),
 )
-errors.install(app, max_bytes=settings.max_body_bytes, max_depth=settings.max_json_depth)
+errors.install(app, max_bytes=settings.max_body_bytes, max_depth=settings.max_json_depth, page_error=page_errors.page_error)
+page_errors.install(app)
 app.add_middleware(InFlightLimit, limit=settings.api_threads)
 app.include_router(api_router)
 app.include_router(metrics_router)

@@ -12,12 +12,7 @@ from typing import Any
 from sqlalchemy import JSON, Boolean, DateTime, Float, ForeignKey, Index, Integer, String, Text, UniqueConstraint, text
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
-ROLES = ("student", "instructor", "auditor")
-SUBMISSION_STATES = ("running", "grading", "graded", "failed")
-CASE_RUN_STATES = ("queued", "running", "done", "failed")
-ASSIGNMENT_ITEMS = ("checkpoints", "exercises", "sheet")
-COUNTED_ATTEMPTS = ("latest", "best")
-VISIBILITIES = ("immediate", "after_due", "on_release")
+# The values of role, status, purpose, items, counted_attempt and visibility columns are grader.core.states' enums.
 
 
 def utcnow() -> datetime:
@@ -204,7 +199,7 @@ class CaseRun(Base):
 
 
 class Measurement(Base):
-    """A validated result, reusable by content key (see worker.reuse for what the key covers)."""
+    """A validated result, reusable by content key (see grader.core.content_key for what the key covers)."""
 
     __tablename__ = "measurements"
 

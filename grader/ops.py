@@ -5,14 +5,14 @@ by `grader status`; both read `service_status`, so they never disagree."""
 from __future__ import annotations
 
 from collections import Counter
-from datetime import timedelta
 
 from pydantic import BaseModel
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from grader.models import CaseRun, Grade, Submission, utcnow
-from grader.settings import settings
+from grader.core import lifecycle
+from grader.core.states import CaseRunState
 
 DURATION_BUCKETS_S = (1, 2, 5, 10, 20, 30, 60, 120, 300, 600, 900)
 
@@ -57,15 +57,14 @@ def service_status(session: Session, *, timeout_s: float = 1.0) -> ServiceStatus
     for backend, state, n in session.execute(
             select(CaseRun.backend, CaseRun.status, func.count()).group_by(CaseRun.backend, CaseRun.status)):
         by_state.setdefault(backend, {})[state] = n
-    failed = session.scalars(select(CaseRun).where(CaseRun.status == "failed"))
+    failed = session.scalars(select(CaseRun).where(CaseRun.status == CaseRunState.FAILED))
     now = utcnow()
     stuck = session.scalar(select(func.count()).select_from(CaseRun).where(
-        ((CaseRun.status == "running") & (CaseRun.lease_until < now))
-        | ((CaseRun.status == "queued") & (CaseRun.queued_at < now - timedelta(seconds=settings.queue_lease_s)))))
+        lifecycle.lease_expired(now) | lifecycle.queue_lease_expired(now)))
     drawing = session.scalar(select(func.count()).select_from(Grade).where(
         Grade.superseded_at.is_(None), Grade.completed_at.is_(None)))
     durations = session.scalars(select(CaseRun.wall_s).where(
-        CaseRun.status == "done", CaseRun.reused_from_id.is_(None), CaseRun.wall_s.is_not(None))).all()
+        CaseRun.status == CaseRunState.DONE, CaseRun.reused_from_id.is_(None), CaseRun.wall_s.is_not(None))).all()
     return ServiceStatus(
         queues=queues, workers=workers, broker_error=broker_error,
         submissions_by_state=dict(session.execute(

@@ -25,6 +25,7 @@ from sqlalchemy.orm import Session
 from grader.core import lifecycle
 from grader.models import CaseRun, Event, Grade, Submission, utcnow
 from grader.settings import settings
+from grader.core.states import CaseRunState, SubmissionState
 
 # A run younger than this is never judged by liveness: its message may be between the broker and a worker.
 LIVENESS_GRACE_S = 10.0
@@ -57,14 +58,14 @@ def orphaned(session: Session, now: datetime, liveness, broker_lost: bool = Fals
     hosts = {_host(name) for name in held_by}
     grace = now - timedelta(seconds=LIVENESS_GRACE_S)
     found = []
-    running = select(CaseRun).where(CaseRun.status == "running", CaseRun.started_at < grace)
+    running = select(CaseRun).where(CaseRun.status == CaseRunState.RUNNING, CaseRun.started_at < grace)
     for run in session.scalars(running.with_for_update(skip_locked=True)).all():
         # Judged only where the claiming host has a worker that answered: a silent host may be busy, not dead,
         # and is left to its lease.
         if (run.id, run.attempt) not in held and run.worker in hosts:
             found.append((run, f"no live worker holds it (worker {run.worker} pid {run.worker_pid} is gone)"))
     # After a loss no queued run's message is trusted, however young: a duplicate is dropped as stale when claimed.
-    queued = select(CaseRun).where(CaseRun.status == "queued", CaseRun.queued_at < (now if broker_lost else grace))
+    queued = select(CaseRun).where(CaseRun.status == CaseRunState.QUEUED, CaseRun.queued_at < (now if broker_lost else grace))
     for run in session.scalars(queued.with_for_update(skip_locked=True)).all():
         if (run.id, run.attempt) in held:
             continue
@@ -83,9 +84,8 @@ def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=
     `broker_lost`: the broker lost its messages; queued runs and pending gradings are re-sent without their leases."""
     now = now or utcnow()
     resend = Resend()
-    lost = select(CaseRun).where(CaseRun.status == "running", CaseRun.lease_until < now)
-    stale = select(CaseRun).where(CaseRun.status == "queued",
-                                  CaseRun.queued_at < now - timedelta(seconds=settings.queue_lease_s))
+    lost = select(CaseRun).where(lifecycle.lease_expired(now))
+    stale = select(CaseRun).where(lifecycle.queue_lease_expired(now))
     todo = orphaned(session, now, liveness, broker_lost) if liveness is not None else []
     todo += [(run, f"its process {run.worker_pid} on {lifecycle.HOST} is gone") for run in lifecycle.dead_here(session)
              if run.id not in {r.id for r, _ in todo}]
@@ -93,13 +93,13 @@ def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=
         todo += [(run, reason) for run in session.scalars(query.with_for_update(skip_locked=True)).all()
                  if run.id not in {r.id for r, _ in todo}]
     for run, reason in todo:
-        if run.status == "running":
+        if run.status == CaseRunState.RUNNING:
             resend.were_running.add(run.id)
         lifecycle.requeue(session, run, reason)
         resend.case_runs.append((run.id, run.attempt, run.backend))
     # A grade task lost with the broker is re-sent at once; grading happens exactly once whatever the duplicates.
     grading_lease = 0 if broker_lost and liveness is not None else settings.lease_s
-    stuck = select(Submission).where(Submission.status == "grading",
+    stuck = select(Submission).where(Submission.status == SubmissionState.GRADING,
                                      Submission.grading_at < now - timedelta(seconds=grading_lease))
     for submission in session.scalars(stuck).all():
         submission.grading_at = utcnow()
@@ -107,7 +107,7 @@ def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=
         resend.gradings.append(submission.id)
     # grading_at is when the grade task was last sent: re-sending it starts the lease again.
     incomplete = (select(Submission).join(Grade, Grade.submission_id == Submission.id)
-                  .where(Submission.status == "graded", Grade.superseded_at.is_(None), Grade.completed_at.is_(None),
+                  .where(Submission.status == SubmissionState.GRADED, Grade.superseded_at.is_(None), Grade.completed_at.is_(None),
                          Submission.grading_at < now - timedelta(seconds=grading_lease)))
     for submission in session.scalars(incomplete).all():
         submission.grading_at = utcnow()

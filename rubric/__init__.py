@@ -34,7 +34,7 @@ from .discrepancy import (
     load_audit_tolerances,
 )
 from .exports import grades_csv, gradescope_results
-from .governance import RegradePreview, RubricGovernanceError, publish_version, regrade_preview
+from .governance import ReportChanges, RubricGovernanceError, publish_version, report_changes
 from .one_factor import ConfigFinding, one_factor_findings
 from .rubrics import Rubric, load_rubric
 from .scoring import ArchivedRubric, GradeReport, ItemGrade, cases_to_run, grade_sheet
@@ -88,7 +88,7 @@ __all__ = [
     "GradeReport",
     "ItemGrade",
     "PredictionSheet",
-    "RegradePreview",
+    "ReportChanges",
     "Rubric",
     "RubricGovernanceError",
     "cases_to_run",
@@ -99,5 +99,5 @@ __all__ = [
     "one_factor_findings",
     "parse_sheet",
     "publish_version",
-    "regrade_preview",
+    "report_changes",
 ]

@@ -98,7 +98,7 @@ class RegradeRow(BaseModel):
         return self.new_score - self.old_score
 
 
-class RegradePreview(BaseModel):
+class ReportChanges(BaseModel):
     """What a regrade would change, per student, before anything is committed (old grades are always kept)."""
 
     rows: list[RegradeRow]
@@ -108,7 +108,7 @@ class RegradePreview(BaseModel):
         return [row for row in self.rows if row.changed_items or row.old_score != row.new_score]
 
 
-def regrade_preview(old: Mapping[str, GradeReport], new: Mapping[str, GradeReport]) -> RegradePreview:
+def report_changes(old: Mapping[str, GradeReport], new: Mapping[str, GradeReport]) -> ReportChanges:
     """Per student: old and new score and every item whose score or verdict differs (students on either side)."""
     rows = []
     for student in sorted(set(old) | set(new)):
@@ -131,4 +131,4 @@ def regrade_preview(old: Mapping[str, GradeReport], new: Mapping[str, GradeRepor
             old_max=a.max_total if a else None, new_max=b.max_total if b else None,
             changed_items=changed,
         ))
-    return RegradePreview(rows=rows)
+    return ReportChanges(rows=rows)

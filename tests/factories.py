@@ -29,13 +29,13 @@ def reference_sheet() -> dict:
 
 def create_people(session, *, course: str, other_course: str) -> dict[str, str]:
     """The course's students, instructor and auditor, plus an instructor of another course; their API tokens by name."""
-    from grader import crud
+    from grader.services import accounts
 
-    courses = [crud.get_or_create_course(session=session, name=name) for name in (course, other_course)]
+    courses = [accounts.get_or_create_course(session=session, name=name) for name in (course, other_course)]
     tokens = {}
     for name, role, index in PEOPLE:
-        user = crud.get_or_create_user(session=session, course=courses[index], name=name, role=role)
-        tokens[name] = crud.create_token(session=session, user=user)
+        user = accounts.get_or_create_user(session=session, course=courses[index], name=name, role=role)
+        tokens[name] = accounts.create_token(session=session, user=user)
     return tokens
 
 
@@ -134,16 +134,16 @@ def store_lesson_runs(session, measured: dict, *, by: str) -> dict[str, int]:
     would have left them; commits. Their case run ids by name."""
     from sqlalchemy import select
 
-    from grader import crud
+    from grader.services import submissions
     from grader.models import User
     from rubric import BASELINE_CASES
     from rubric.scoring import LESSON_RUNS
 
     from grader.models import Measurement
-    from worker import reuse
+    from grader.core import content_key as reuse
 
     user = session.scalar(select(User).where(User.name == by))
-    earlier = crud.create_submission(session=session, student=user, lesson="L03", sheet=reference_sheet(),
+    earlier = submissions.create_submission(session=session, student=user, lesson="L03", sheet=reference_sheet(),
                                      specs=[BASELINE_CASES[name] for name in LESSON_RUNS], force_rerun=False)
     session.flush()
     for run in earlier.case_runs:
@@ -155,3 +155,14 @@ def store_lesson_runs(session, measured: dict, *, by: str) -> dict[str, int]:
                                 artifact_dir=run.artifact_dir))
     session.commit()
     return {run.name: run.id for run in earlier.case_runs}
+
+
+def audit_entry_for(run, **fields):
+    """An AuditEntry comparing a case run with itself (cpu 32 against cpu 64, warm), as the audit would store it."""
+    from grader.models import AuditEntry
+
+    values = dict(course_id=run.submission.course_id, lesson="L03", case=run.name, spec_key=run.spec_key,
+                  spec=run.spec, left_case_run_id=run.id, right_case_run_id=run.id, left_variant="cpu/32/warm",
+                  right_variant="cpu/64/warm", classification="numeric_drift", summary="stored by the test",
+                  figures=[])
+    return AuditEntry(**(values | fields))

@@ -19,6 +19,7 @@ from grader.core.audit import PROVENANCE_MARKERS, spec_key, variant
 from grader.core.lifecycle import stored_result
 from grader.models import AuditEntry, CaseRun
 from grader.settings import settings
+from grader.core.states import CaseRunState
 
 log = logging.getLogger(__name__)
 
@@ -40,7 +41,7 @@ def audit_finished_run(session: Session, run_id: int) -> list[AuditEntry]:
             entries.append(_violation_entry(session, run, run.error))
         elif (reason := _pin_violation(session, run)) is not None:
             entries.append(_violation_entry(session, run, reason))
-        elif run.status == "done" and run.reused_from_id is None:
+        elif run.status == CaseRunState.DONE and run.reused_from_id is None:
             for other in _other_variants(session, run):
                 entries.append(_entry(session, other, run))
     except Exception:  # noqa: BLE001 - the audit must never lose the run or its grade; the log names it
@@ -52,12 +53,12 @@ def audit_finished_run(session: Session, run_id: int) -> list[AuditEntry]:
 
 
 def _provenance_violation(run: CaseRun) -> bool:
-    return run.status == "failed" and any(m in (run.error or "") for m in PROVENANCE_MARKERS)
+    return run.status == CaseRunState.FAILED and any(m in (run.error or "") for m in PROVENANCE_MARKERS)
 
 
 def _pin_violation(session: Session, run: CaseRun) -> str | None:
     """A finished run whose provenance breaks what its course's rubric pins (rubric.guards), or None."""
-    if run.status != "done" or run.reused_from_id is not None or not run.provenance:
+    if run.status != CaseRunState.DONE or run.reused_from_id is not None or not run.provenance:
         return None
     from grader.core.rubrics import course_rubric
     from rubric import CaseResult, Provenance, parse_case
@@ -75,7 +76,7 @@ def _other_variants(session: Session, run: CaseRun) -> list[CaseRun]:
         select(AuditEntry).where(AuditEntry.spec_key == run.spec_key))}
     found = []
     for other in session.scalars(select(CaseRun).where(
-            CaseRun.spec_key == run.spec_key, CaseRun.id != run.id, CaseRun.status == "done",
+            CaseRun.spec_key == run.spec_key, CaseRun.id != run.id, CaseRun.status == CaseRunState.DONE,
             CaseRun.result_status == "ok", CaseRun.reused_from_id.is_(None)).order_by(CaseRun.id)):
         theirs = variant(other)
         if theirs in seen or frozenset((mine, theirs)) in logged:
@@ -99,7 +100,7 @@ def _entry(session: Session, left: CaseRun, right: CaseRun, *, requested_by_id: 
     a, b = stored_result(left), stored_result(right)
     if not (a.ok and b.ok):
         failed = [f"case run {r.id} ({variant(r)}): {r.error or r.status}" for r in (left, right)
-                  if r.status != "done" or r.result_status != "ok"]
+                  if r.status != CaseRunState.DONE or r.result_status != "ok"]
         return _add(session, AuditEntry(**base, classification="not_compared", comparison=None,
                                         summary="not compared: " + "; ".join(failed)))
     comparison = with_set_relations(compare_cases(a, b), *(_variant_set(session, r) for r in (left, right)))
@@ -116,11 +117,11 @@ def _variant_set(session: Session, run: CaseRun) -> dict:
     submission = run.submission
     wanted, found = variant(run), {}
     for other in submission.case_runs:
-        if other.status == "done" and other.result_status == "ok" and variant(other) == wanted:
+        if other.status == CaseRunState.DONE and other.result_status == "ok" and variant(other) == wanted:
             found[other.name] = other
     for other in submission.audit_runs:
         source = session.get(CaseRun, other.source_case_run_id) if other.source_case_run_id else None
-        if source is not None and other.status == "done" and other.result_status == "ok" and variant(other) == wanted:
+        if source is not None and other.status == CaseRunState.DONE and other.result_status == "ok" and variant(other) == wanted:
             found[source.name] = other
     return {name: stored_result(r) for name, r in found.items()}
 

@@ -16,12 +16,12 @@ from sqlalchemy.orm import Session
 from grader.core import lifecycle
 from grader.models import CaseRun, Measurement
 from grader.settings import settings
-from worker import reuse
+from grader.core import content_key
 
 
 def reusable(*, session: Session, run: CaseRun, key_inputs: dict[str, Any]) -> Measurement | None:
     """Set the run's content key; the stored measurement under it, unless the submission forces a re-run."""
-    run.content_key = reuse.content_key(key_inputs)
+    run.content_key = content_key.content_key(key_inputs)
     if run.submission.force_rerun or run.purpose == "audit":  # an audit re-run exists to measure again
         return None
     return session.scalar(select(Measurement).where(Measurement.content_key == run.content_key))
@@ -33,7 +33,7 @@ def process_case_run(*, session: Session, case_run_id: int, attempt: int, run_ca
     session.commit()
     if run is None:
         return _submission_of(session, case_run_id) if started_grading else None
-    key_inputs = reuse.key_inputs(run.spec, backend=run.backend, precision=run.precision)
+    key_inputs = content_key.key_inputs(run.spec, backend=run.backend, precision=run.precision)
     measurement = reusable(session=session, run=run, key_inputs=key_inputs)
     if measurement is not None:
         return run.submission_id if lifecycle.store_reused(session=session, run=run, measurement=measurement) else None

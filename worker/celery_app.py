@@ -15,7 +15,7 @@ Embedded broker (no server): kombu's filesystem transport under DATA_DIR/broker.
 transport on SQLite median 0.64 s / max 1.87 s (it polls once a second and takes no polling option). A worker with
 prefetch 1 fetches its next task only at the next poll, so each task costs up to one polling interval: at 0.2 s a
 fully reused submission (10 tasks) spent ~2 s waiting on polls, so the filesystem broker polls every 0.05 s (a
-listdir of a small folder; `grader bench --only submission` shows the effect). Both restore
+listdir of a small folder; `python -m tools.bench --only submission` shows the effect). Both restore
 a rejected message (worker process lost) and lose unacked messages only if the whole worker dies, which the
 reconciler covers. Deployment uses Redis (BROKER_URL=redis://...).
 """
@@ -29,6 +29,7 @@ from celery import Celery
 from kombu import Queue
 from kombu.transport import TRANSPORT_ALIASES
 
+from grader.core.states import Backend, values
 from grader.settings import settings
 
 # filesystem:// is kombu's filesystem transport serving messages by priority (worker.filesystem_broker), in every
@@ -54,7 +55,7 @@ def transport_options(url: str) -> dict:
     return {}
 
 
-BACKEND_QUEUES = ("cpu", "rocm", "cuda")
+BACKEND_QUEUES = tuple(values(Backend))  # one queue per backend, never another
 GRADE_QUEUE = "grade"
 RUN_TASK = "worker.tasks.run_case_run"
 GRADE_TASK = "worker.tasks.grade_submission"

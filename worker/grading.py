@@ -21,45 +21,37 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from grader.core.lab_check import lab_check
+from grader.core.grading import grade_and_store
 from grader.core.lifecycle import stored_result, touch
 from grader.core.rubrics import course_rubric, current_grade
 from grader.models import Event, Grade, Submission, utcnow
 from grader.settings import settings
+from grader.core.states import SubmissionState
 
 
 def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
     """Grade a submission in state 'grading' exactly once; None if it is not (or no longer) waiting for a grade.
 
     The grade is stored without its figures and lab check (completed_at NULL): `complete_grade` adds them."""
-    import rubric
-
     submission = session.get(Submission, submission_id)
-    if submission is None or submission.status != "grading":
+    if submission is None or submission.status != SubmissionState.GRADING:
         return None
     existing = current_grade(session, submission_id)
     if existing is not None:  # graded before a crash could record the state change
-        touch(submission, "graded", "grade already stored", session=session)
+        touch(submission, SubmissionState.GRADED, "grade already stored", session=session)
         session.commit()
         return existing
-    started = time.perf_counter()
     try:
-        sheet = rubric.parse_sheet(submission.sheet, submission.items)
-        results = {run.name: stored_result(run) for run in submission.case_runs}
         book = course_rubric(session, submission.course_id, submission.lesson)
-        report = rubric.grade_sheet(sheet, results, book)
+        grade = grade_and_store(session=session, submission=submission, book=book, complete=False,
+                                detail="{total:g} / {max_total:g}; figures and lab check next")
     except Exception as exc:  # a grading bug must be visible on the submission, not a stuck 'grading'
+        session.rollback()
+        submission = session.get(Submission, submission_id)
         submission.error = f"grading failed: {type(exc).__name__}: {exc}"
-        touch(submission, "failed", submission.error, session=session)
+        touch(submission, SubmissionState.FAILED, submission.error, session=session)
         session.commit()
         return None
-    grade = Grade(submission_id=submission.id, rubric_lesson=book.lesson, rubric_version=str(book.version),
-                  rubric_hash=book.content_hash, total=report.total, max_total=report.max_total,
-                  report=report.model_dump(mode="json"), execution_s=time.perf_counter() - started,
-                  completed_at=None)
-    session.add(grade)
-    submission.graded_at = utcnow()
-    touch(submission, "graded", f"{report.total:g} / {report.max_total:g}; figures and lab check next",
-          session=session)
     try:
         session.commit()
     except IntegrityError:  # another grader won the race; its grade stands

@@ -1,4 +1,5 @@
-"""Request dependencies: a database session per request and the caller, from a bearer token."""
+"""Request dependencies: a database session per request, the caller from a bearer token, and the roles a route
+needs (declared on the route: `user: InstructorUser`, `course: StaffCourse`; the rules are grader.services.access)."""
 
 from __future__ import annotations
 
@@ -9,14 +10,14 @@ from fastapi import Depends, HTTPException, Path, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.orm import Session
 
-from grader import crud
+from grader.services import access, accounts
 from grader.core.db import new_session
-from grader.models import Submission, User
+from grader.models import Course, Submission, User
 
 # Primary keys are SQL INTEGER columns: 32-bit on PostgreSQL, the deployment database. An id outside this range names
 # no row on either database (SQLite cannot even bind one above 2**63 - 1: that was a 500), so it is refused up front
 # with 422 naming the parameter, and the range is in the OpenAPI schema.
-MAX_ID = 2**31 - 1
+MAX_ID = access.MAX_ID
 RowId = Annotated[int, Path(ge=1, le=MAX_ID, description=f"A row id, 1 to {MAX_ID}")]
 # Course and case-run names as the tables store them (String(64)); a longer one cannot exist.
 Name = Annotated[str, Path(min_length=1, max_length=64)]
@@ -36,7 +37,7 @@ def current_user(session: SessionDep,
                  credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)]) -> User:
     if credentials is None or credentials.scheme.lower() != "bearer":
         raise HTTPException(status.HTTP_401_UNAUTHORIZED, "missing bearer token", {"WWW-Authenticate": "Bearer"})
-    user = crud.user_by_token(session=session, token=credentials.credentials)
+    user = accounts.user_by_token(session=session, token=credentials.credentials)
     if user is None:
         raise HTTPException(status.HTTP_401_UNAUTHORIZED, "unknown or revoked token", {"WWW-Authenticate": "Bearer"})
     return user
@@ -47,10 +48,44 @@ CurrentUser = Annotated[User, Depends(current_user)]
 
 def readable_submission(submission_id: RowId, session: SessionDep, user: CurrentUser) -> Submission:
     """The submission if the caller may read it; 404 otherwise (never revealing that it exists)."""
-    submission = session.get(Submission, submission_id)
-    if submission is None or not crud.can_read(user=user, submission=submission):
-        raise HTTPException(status.HTTP_404_NOT_FOUND, f"submission {submission_id} not found")
-    return submission
+    return access.readable_submission(session=session, user=user, submission_id=submission_id)
 
 
 SubmissionDep = Annotated[Submission, Depends(readable_submission)]
+
+
+def staff_user(user: CurrentUser) -> User:
+    access.require_staff(user, action="do this")
+    return user
+
+
+def instructor_user(user: CurrentUser) -> User:
+    access.require_instructor(user, action="do this")
+    return user
+
+
+StaffUser = Annotated[User, Depends(staff_user)]
+InstructorUser = Annotated[User, Depends(instructor_user)]
+
+
+def member_course(course: Name, session: SessionDep, user: CurrentUser) -> Course:
+    """The caller's own course by its name in the path; 404 for any other, whether or not it exists."""
+    return access.own_course(session=session, user=user, name=course)
+
+
+MemberCourse = Annotated[Course, Depends(member_course)]
+
+
+def staff_course(course: MemberCourse, user: CurrentUser) -> Course:
+    """The caller's own course, for its instructors and auditors (404 for another course first, then 403)."""
+    access.require_staff(user, action="read the course's records")
+    return course
+
+
+def instructor_course(course: MemberCourse, user: CurrentUser) -> Course:
+    access.require_instructor(user, action="change the course")
+    return course
+
+
+StaffCourse = Annotated[Course, Depends(staff_course)]
+InstructorCourse = Annotated[Course, Depends(instructor_course)]

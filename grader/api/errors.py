@@ -1,33 +1,29 @@
-"""Every error is JSON {detail, errors: [{field, rule}]} (grader.schemas.ErrorBody); bodies are checked by
-grader.api.bodies before any handler runs."""
+"""The one place errors become answers. Under /v1 every error is JSON {detail, errors: [{field, rule}]}
+(grader.schemas.ErrorBody); bodies are checked by grader.api.bodies before any handler runs. A domain error
+(grader.services.errors) raised for a page becomes that page's HTML answer instead (`page_error`, from grader.pages)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
 from fastapi.routing import iter_route_contexts
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from grader.api.bodies import MAX_ERRORS, BodyGuard
+from grader.services.errors import Conflict, DomainError, Forbidden, Invalid, NotFound, Refused
+
+API_PREFIX = "/v1"
 
 
-class FieldError(HTTPException):
+class ErrorWithFields(HTTPException):
     """An HTTPException whose body names the field and the rule, like a validation error."""
 
     def __init__(self, status_code: int, detail: str, errors: list[dict[str, str]], headers=None):
         super().__init__(status_code, detail, headers)
         self.errors = errors
-
-
-def field_errors(lines: list[str], prefix: str = "") -> list[dict[str, str]]:
-    """'field.path: rule' lines (rubric.describe_errors) as [{field, rule}]."""
-    out = []
-    for line in lines:
-        field, sep, rule = line.partition(": ")
-        field, rule = (field, rule) if sep else ("", line)
-        out.append({"field": ".".join(p for p in (prefix, field) if p), "rule": rule})
-    return out
 
 
 def error(status: int, detail: str, errors: list[dict[str, str]] | None = None, headers=None) -> JSONResponse:
@@ -65,7 +61,28 @@ def _allowed_methods(request: Request) -> set[str]:
     return methods
 
 
-def install(app: FastAPI, *, max_bytes: int, max_depth: int) -> None:
+def status_of(exc: DomainError) -> int:
+    if isinstance(exc, Refused):
+        return 429 if exc.retry_after_s is not None else 409
+    for kind, code in ((NotFound, 404), (Forbidden, 403), (Conflict, 409), (Invalid, 422)):
+        if isinstance(exc, kind):
+            return code
+    return 400
+
+
+def _domain_handler(page_error: Callable[[Request, DomainError, int], Response] | None):
+    async def handle(request: Request, exc: DomainError) -> Response:
+        code = status_of(exc)
+        if page_error is not None and not request.url.path.startswith(API_PREFIX):
+            return page_error(request, exc, code)
+        headers = {"Retry-After": str(exc.retry_after_s)} if isinstance(exc, Refused) and exc.retry_after_s else None
+        return error(code, exc.detail, exc.errors, headers=headers)
+    return handle
+
+
+def install(app: FastAPI, *, max_bytes: int, max_depth: int,
+            page_error: Callable[[Request, DomainError, int], Response] | None = None) -> None:
+    app.add_exception_handler(DomainError, _domain_handler(page_error))
     app.add_exception_handler(RequestValidationError, _validation)
     app.add_exception_handler(StarletteHTTPException, _http)
     app.add_middleware(BodyGuard, max_bytes=max_bytes, max_depth=max_depth)

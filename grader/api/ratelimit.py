@@ -12,7 +12,7 @@ from fastapi import Depends
 from fastapi.security import HTTPAuthorizationCredentials
 
 from grader.api.deps import CurrentUser, bearer
-from grader.api.errors import FieldError
+from grader.api.errors import ErrorWithFields
 from grader.core.security import hash_token
 from grader.settings import settings
 
@@ -37,6 +37,6 @@ def limit_submissions(_: CurrentUser,
     if not limiter.hit(item, "submissions", key):
         reset_at, _ = limiter.get_window_stats(item, "submissions", key)
         retry_after = max(1, math.ceil(reset_at - time.time()))
-        raise FieldError(429, f"too many submissions with this token; try again in {retry_after} s",
+        raise ErrorWithFields(429, f"too many submissions with this token; try again in {retry_after} s",
                          [{"field": "Authorization", "rule": f"at most {item} submissions per token"}],
                          headers={"Retry-After": str(retry_after)})

@@ -37,5 +37,7 @@ def csv_ok(description: str) -> dict[int, dict]:
 
 
 def file_ok(description: str, *media_types: str) -> dict[int, dict]:
+    """A file download: bytes, except a JSON file, whose body is a JSON document (provenance, metrics, spec)."""
     return {200: {"description": description,
-                  "content": {m: {"schema": {"type": "string", "format": "binary"}} for m in media_types}}}
+                  "content": {m: {"schema": {"type": "object"} if m == "application/json"
+                                  else {"type": "string", "format": "binary"}} for m in media_types}}}

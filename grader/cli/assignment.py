@@ -6,10 +6,12 @@ from pathlib import Path
 
 import click
 
+from grader.core.states import Visibility, values
+
 from grader.cli.rubric import TOKEN, URL, _call, _client
 
 
-VISIBILITIES = ["immediate", "after_due", "on_release"]
+VISIBILITIES = values(Visibility)
 
 
 def _item_visibility(ctx, param, values: tuple[str, ...]) -> dict[str, str]:
@@ -26,7 +28,7 @@ def _in_zone(client, course: str):
     """ISO times from the API (UTC) -> as the course shows them ('2026-12-08 10:00 CET')."""
     from datetime import datetime
 
-    from grader.timezones import local
+    from grader.core.timezones import local
 
     zone = _call(client.course, course)["timezone"]
     return lambda iso: local(datetime.fromisoformat(iso.replace("Z", "+00:00")), zone)

@@ -7,6 +7,8 @@ import sys
 from pathlib import Path
 
 import click
+
+from grader.core.states import ExecutionMode, values
 from pydantic import TypeAdapter, ValidationError
 
 from rubric import BASELINE_CASES, CaseSpec, describe_errors, get_case, parse_case
@@ -57,7 +59,7 @@ def load_spec_file(path: Path):
 @case.command()
 @click.argument("spec_file", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path))
-@click.option("--mode", type=click.Choice(["isolated", "warm"]), default="isolated", show_default=True)
+@click.option("--mode", type=click.Choice(values(ExecutionMode)), default="isolated", show_default=True)
 def run(spec_file: Path, out_dir: Path, mode: str) -> None:
     """Run one case spec on real Genesis and keep its evidence in OUT."""
     from worker import run_case

@@ -9,10 +9,12 @@ from pathlib import Path
 
 import click
 
+from grader.core.states import Backend, ExecutionMode, values
+
 from rubric import CHECK_CASES, CaseResult
 from rubric.check import OutputLocation, check_cases, evaluate
 
-from grader.report import write_check_report
+from grader.check_report import write_check_report
 
 from .case import load_spec_file
 
@@ -75,9 +77,9 @@ def run_check(
 
 
 @click.command()
-@click.option("--backend", type=click.Choice(["cpu", "rocm", "cuda"]), default="cpu", show_default=True)
+@click.option("--backend", type=click.Choice(values(Backend)), default="cpu", show_default=True)
 @click.option("--render/--no-render", default=False, help="Add a camera and return real initial/final frames.")
-@click.option("--mode", type=click.Choice(["isolated", "warm"]), default="isolated", show_default=True,
+@click.option("--mode", type=click.Choice(values(ExecutionMode)), default="isolated", show_default=True,
               help="isolated: one process per case (the lesson's contract); warm: one long-lived Genesis process.")
 @click.option("--jobs", type=click.IntRange(1, 16), default=1, show_default=True, help="Parallel isolated processes.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("out/check"),

@@ -8,6 +8,8 @@ import time
 from pathlib import Path
 
 import click
+
+from grader.core.states import ExecutionMode, values
 import yaml
 from pydantic import ValidationError
 
@@ -65,7 +67,7 @@ def _echo_report(report) -> None:
               help="Folder for the case evidence, report.json, results.json (Gradescope) and grades.csv.")
 @click.option("--json", "as_json", is_flag=True, help="Print the full grade report as JSON on stdout.")
 @click.option("--rubric-version", default=None, help="Rubric version to grade under (default: the latest).")
-@click.option("--mode", type=click.Choice(["warm", "isolated"]), default="warm", show_default=True)
+@click.option("--mode", type=click.Choice(values(ExecutionMode)), default="warm", show_default=True)
 def grade(sheet_file: Path, configs_dir: Path | None, out_dir: Path, as_json: bool, rubric_version: str | None,
           mode: str) -> None:
     """Grade a prediction SHEET against cases measured on this machine; prints each item and the total."""

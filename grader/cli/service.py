@@ -8,6 +8,8 @@ import time
 
 import click
 
+from grader.core.states import Backend, values
+
 from grader.settings import settings
 
 
@@ -31,23 +33,23 @@ def migrate() -> None:
 @click.option("--role", type=click.Choice(["student", "instructor", "auditor"]), required=True)
 def token(course: str, name: str, role: str) -> None:
     """Create COURSE and user NAME if needed, and print a new API token for them (shown only once)."""
-    from grader import crud
+    from grader.services import accounts
     from grader.core.db import new_session
 
     with new_session() as session:
-        course_row = crud.get_or_create_course(session=session, name=course)
+        course_row = accounts.get_or_create_course(session=session, name=course)
         try:
-            user = crud.get_or_create_user(session=session, course=course_row, name=name, role=role)
+            user = accounts.get_or_create_user(session=session, course=course_row, name=name, role=role)
         except ValueError as exc:
             raise click.ClickException(str(exc)) from None
-        clear = crud.create_token(session=session, user=user)
+        clear = accounts.create_token(session=session, user=user)
         session.commit()
     click.echo(clear)
 
 
 @click.command()
 @click.option("--queue", "queues", multiple=True, default=("cpu", "grade"), show_default=True,
-              type=click.Choice(["cpu", "rocm", "cuda", "grade"]), help="Queues to consume (repeatable).")
+              type=click.Choice([*values(Backend), "grade"]), help="Queues to consume (repeatable).")
 @click.option("--loglevel", default="info", show_default=True)
 def worker(queues: tuple[str, ...], loglevel: str) -> None:
     """Run a Celery worker: one slot holding one warm Genesis process (prefork, concurrency 1)."""
@@ -98,7 +100,7 @@ def reconcile(every: float) -> None:
 @click.argument("sheet_file", type=click.Path(exists=True, dir_okay=False, path_type=__import__("pathlib").Path))
 @click.option("--url", envvar="GRADER_URL", default="http://127.0.0.1:8000", show_default=True)
 @click.option("--token", envvar="GRADER_TOKEN", required=True, help="API token (or GRADER_TOKEN).")
-@click.option("--backend", type=click.Choice(["cpu", "rocm", "cuda"]), help="Run every case on this backend.")
+@click.option("--backend", type=click.Choice(values(Backend)), help="Run every case on this backend.")
 @click.option("--force-rerun", is_flag=True, help="Measure afresh instead of reusing stored measurements.")
 @click.option("--no-wait", is_flag=True, help="Submit and print the id without following progress.")
 @click.option("--assignment", "assignment_id", type=int, default=None,
@@ -123,7 +125,7 @@ def submit(sheet_file, url: str, token: str, backend: str | None, force_rerun: b
     else:
         click.echo(f"submission {created['id']}: {progress['queued']} case runs queued")
     if created["attempt"]:
-        from grader.assignments import late_text
+        from grader.services.assignments import late_text
 
         click.echo(f"assignment {created['assignment_id']}, attempt {created['attempt']}, "
                    f"{late_text(created['late_seconds'])}")

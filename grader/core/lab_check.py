@@ -3,7 +3,7 @@
 The lesson's "How to know the lab worked" is written for a local lab run: child processes the learner started, a
 rendering mode the learner chose, an output directory the learner configured. In the service the same conditions are
 evaluated on the same kind of evidence, and each condition whose meaning shifts says how in its evidence:
-- processes: a case may be a measurement reused from an identical earlier run (worker/reuse.py); its provenance is
+- processes: a case may be a measurement reused from an identical earlier run (grader/core/content_key.py); its provenance is
   the process that produced the numbers, and the evidence names the reuse;
 - rendering: the service runs the lesson cases with rendering off, so only the disabled branch (explicit empty
   frames and a rendering SKIP) is exercised; the camera branch is for `grader check --render`;

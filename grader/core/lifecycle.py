@@ -9,18 +9,19 @@ from __future__ import annotations
 
 import os
 import socket
-from datetime import timedelta
+from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import func, select, update
+from sqlalchemy import func, null, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from grader.models import CaseRun, Event, Measurement, Submission, utcnow
+from grader.models import CaseRun, Event, Grade, Measurement, Submission, utcnow
 from grader.settings import settings
+from grader.core import content_key
+from grader.core.states import TERMINAL, CaseRunPurpose, CaseRunState, SubmissionState
 
-TERMINAL = ("done", "failed")
 HOST = socket.gethostname()
 # Where a message goes in its queue (kombu's Redis and filesystem transports serve the lowest number first; Redis
 # keeps one list per step of 0, 3, 6, 9): a run whose worker died mid-case first, then a queued run whose message was
@@ -45,17 +46,78 @@ def dead_here(session: Session) -> list[CaseRun]:
     """Running runs claimed on this very host by a process that no longer exists (locked; knowable without a broker).
 
     No grace: a claim records its live pid in the same transaction, so a dead pid is certain, never in transit."""
-    running = select(CaseRun).where(CaseRun.status == "running", CaseRun.worker == HOST)
+    running = select(CaseRun).where(CaseRun.status == CaseRunState.RUNNING, CaseRun.worker == HOST)
     return [run for run in session.scalars(running.with_for_update(skip_locked=True)).all()
             if not _pid_alive(run.worker_pid)]
 
 
+def lease_expired(now: datetime):
+    """SQL: a running run whose lease ran out (its worker crashed, or its host was lost)."""
+    return (CaseRun.status == CaseRunState.RUNNING) & (CaseRun.lease_until < now)
+
+
+def queue_lease_expired(now: datetime):
+    """SQL: a queued run no worker took within the queue lease (its message presumed lost)."""
+    return (CaseRun.status == CaseRunState.QUEUED) & (CaseRun.queued_at < now - timedelta(seconds=settings.queue_lease_s))
+
+
+def stuck_reason(run: CaseRun, now: datetime) -> str | None:
+    """Why an unfinished run looks stuck, or None: the rule of `lease_expired` and `queue_lease_expired`, for a row."""
+    if run.status == CaseRunState.RUNNING and run.lease_until is not None and run.lease_until < now:
+        return f"running past its lease (since {run.lease_until:%H:%M:%S} UTC) on {run.worker or 'an unknown worker'}"
+    if run.status == CaseRunState.QUEUED and run.queued_at < now - timedelta(seconds=settings.queue_lease_s):
+        return f"queued for more than {settings.queue_lease_s:.0f} s"
+    return None
+
+
 def requeue(session: Session, run: CaseRun, reason: str) -> None:
-    """Back to queued under a new attempt number, which makes every older message for it stale; the caller sends it."""
-    run.status, run.attempt, run.queued_at = "queued", run.attempt + 1, utcnow()
+    """Back to queued under a new attempt number, which makes every older message for it stale; the caller sends it.
+
+    For the reconciler and a worker starting where one died: the run keeps its tries (bounded by max_infra_retries)."""
+    run.status, run.attempt, run.queued_at = CaseRunState.QUEUED, run.attempt + 1, utcnow()
     run.worker = run.worker_pid = run.lease_until = None
     session.add(Event(submission_id=run.submission_id, case_run_id=run.id, state="requeued",
                       detail=f"{reason}; attempt {run.attempt} on queue {run.backend}"))
+
+
+def resend(session: Session, run: CaseRun, *, by: str) -> None:
+    """A person re-sends a failed or stuck run (`by`: "instructor NAME"): queued under a new attempt number with its
+    tries, result and evidence cleared as before its first run, recorded in an event that keeps the old error. A grade
+    that counted the run is superseded (kept in the history) and the submission is graded again once the run
+    finishes; a failed submission goes back to running. The caller has locked the submission and commits."""
+    submission, now = run.submission, utcnow()
+    was = run.status
+    previous = run.error if was == CaseRunState.FAILED else stuck_reason(run, now)
+    old = f"attempt {run.attempt}, try {run.tries}" + (f", evidence in {run.artifact_dir}" if run.artifact_dir else "")
+    run.status, run.attempt, run.tries, run.queued_at = CaseRunState.QUEUED, run.attempt + 1, 0, now
+    run.worker = run.worker_pid = run.lease_until = run.started_at = run.finished_at = None
+    run.result_status = run.error = run.stderr_tail = run.wall_s = run.actual_backend = None
+    run.artifact_dir = run.measurement_id = run.reused_from_id = None
+    run.provenance = run.metrics = null()  # SQL NULL, as before the first run (None would store JSON 'null')
+    session.add(Event(submission_id=submission.id, case_run_id=run.id, state="resent",
+                      detail=f"resent by {by}: was {was} ({old}): {previous}; "
+                             f"attempt {run.attempt} on queue {run.backend}"))
+    grade = session.scalar(select(Grade).where(Grade.submission_id == submission.id, Grade.superseded_at.is_(None)))
+    if grade is not None:
+        # The grade that counted this run as not measured is kept in the history, superseded; the submission is
+        # graded again, under the course's version, once the re-sent run finishes (one current grade at a time).
+        grade.superseded_at = now
+        submission.status, submission.updated_at = SubmissionState.RUNNING, now
+        session.add(Event(submission_id=submission.id, state=SubmissionState.RUNNING,
+                          detail=f"case run {run.name} resent by {by}: grade {grade.total:g} / "
+                                 f"{grade.max_total:g} (v{grade.rubric_version}) kept in the history, superseded; "
+                                 "graded again when the run finishes"))
+    elif submission.status == SubmissionState.FAILED:
+        previous_error = submission.error
+        submission.status, submission.error, submission.updated_at = SubmissionState.RUNNING, None, now
+        session.add(Event(submission_id=submission.id, state=SubmissionState.RUNNING,
+                          detail=f"case run {run.name} resent by {by}; was failed: {previous_error}"))
+
+
+def lock_submission(session: Session, submission_id: int) -> None:
+    """Lock a submission's row: its finishers (`_finish`) and a resend serialize, so exactly one sees the last run
+    done. Take it before a case run's lock (the order `_finish` takes)."""
+    session.execute(select(Submission.id).where(Submission.id == submission_id).with_for_update())
 
 
 def claim(*, session: Session, case_run_id: int, attempt: int) -> tuple[CaseRun | None, bool]:
@@ -70,14 +132,14 @@ def claim(*, session: Session, case_run_id: int, attempt: int) -> tuple[CaseRun 
     if run is None or run.attempt != attempt or run.status in TERMINAL:
         return None, False
     now = utcnow()
-    if run.status == "running":
+    if run.status == CaseRunState.RUNNING:
         ours = run.worker == HOST and (run.worker_pid == os.getpid() or not _pid_alive(run.worker_pid))
         if not ours and run.lease_until and run.lease_until > now:
             return None, False
     if run.tries >= settings.max_infra_retries + 1:
         error = f"gave up after {run.tries} deliveries lost to worker failures"
-        return None, _finish(session, run, status="failed", error=error)
-    run.status, run.tries = "running", run.tries + 1
+        return None, _finish(session, run, status=CaseRunState.FAILED, error=error)
+    run.status, run.tries = CaseRunState.RUNNING, run.tries + 1
     run.worker, run.worker_pid = HOST, os.getpid()
     run.started_at, run.lease_until = now, now + timedelta(seconds=settings.lease_s)
     session.add(Event(submission_id=run.submission_id, case_run_id=run.id, state="running",
@@ -85,14 +147,20 @@ def claim(*, session: Session, case_run_id: int, attempt: int) -> tuple[CaseRun 
     return run, False
 
 
-def store_reused(*, session: Session, run: CaseRun, measurement: Measurement) -> bool:
-    """Finish the run on a stored measurement of the same content key; True when this moved it to grading."""
+def _apply_measurement(run: CaseRun, measurement: Measurement) -> str:
+    """Point the run at a stored measurement of its content key: its evidence, metrics and backend become the run's.
+    Returns the event text that says so."""
+    run.content_key = measurement.content_key
     run.measurement_id, run.reused_from_id = measurement.id, measurement.case_run_id
     run.provenance, run.artifact_dir = measurement.provenance, measurement.artifact_dir
     run.metrics = measurement.metrics
     run.actual_backend, run.result_status = measurement.backend, "ok"
-    detail = f"reused measurement {measurement.id} of case run {measurement.case_run_id}"
-    return _finish(session, run, status="done", detail=detail)
+    return f"reused measurement {measurement.id} of case run {measurement.case_run_id}"
+
+
+def store_reused(*, session: Session, run: CaseRun, measurement: Measurement) -> bool:
+    """Finish the run on a stored measurement of the same content key; True when this moved it to grading."""
+    return _finish(session, run, status=CaseRunState.DONE, detail=_apply_measurement(run, measurement))
 
 
 def reuse_at_admission(*, session: Session, submission: Submission) -> bool:
@@ -101,37 +169,32 @@ def reuse_at_admission(*, session: Session, submission: Submission) -> bool:
     none is left to run, the submission then 'grading': only its grade task needs sending. The worker decides again
     for each run it receives (worker.case_run.reusable), so this only spares a broker round trip per stored case.
 
-    The key is worker.reuse's, computed with the engine versions installed beside the API: a host whose versions
+    The key is grader.core.content_key's, computed with the engine versions installed beside the API: a host whose versions
     differ from the measurement's finds no key and queues the run, which the worker then measures or reuses."""
-    from worker import reuse
-
     if submission.force_rerun:
         return False
     for run in submission.case_runs:
-        if run.status != "queued":
+        if run.status != CaseRunState.QUEUED:
             continue
-        key = reuse.content_key(reuse.key_inputs(run.spec, backend=run.backend, precision=run.precision))
+        key = content_key.content_key(content_key.key_inputs(run.spec, backend=run.backend, precision=run.precision))
         measurement = session.scalar(select(Measurement).where(Measurement.content_key == key))
         if measurement is None:
             continue
-        run.content_key, run.measurement_id, run.reused_from_id = key, measurement.id, measurement.case_run_id
-        run.provenance, run.artifact_dir, run.metrics = measurement.provenance, measurement.artifact_dir, measurement.metrics
-        run.actual_backend, run.result_status = measurement.backend, "ok"
-        run.status, run.finished_at = "done", utcnow()
-        session.add(Event(submission_id=submission.id, case_run_id=run.id, state="done",
-                          detail=f"reused measurement {measurement.id} of case run {measurement.case_run_id} "
-                                 f"(found when submitted)"))
+        detail = _apply_measurement(run, measurement)
+        run.status, run.finished_at = CaseRunState.DONE, utcnow()
+        session.add(Event(submission_id=submission.id, case_run_id=run.id, state=CaseRunState.DONE,
+                          detail=f"{detail} (found when submitted)"))
     if not submission.case_runs or any(run.status not in TERMINAL for run in submission.case_runs):
         return False
     submission.grading_at = utcnow()
-    touch(submission, "grading", "every case reuses a stored measurement", session=session)
+    touch(submission, SubmissionState.GRADING, "every case reuses a stored measurement", session=session)
     return True
 
 
 def store_result(*, session: Session, run: CaseRun, result, key_inputs: dict[str, Any]) -> bool:
     """Record a CaseResult (ok or not) on the run; True when this moved the submission to grading.
 
-    An ok result becomes a reusable Measurement under run.content_key, the key of `key_inputs` (worker.reuse).
+    An ok result becomes a reusable Measurement under run.content_key, the key of `key_inputs` (grader.core.content_key).
     """
     provenance = result.provenance.model_dump(mode="json") if result.provenance else None
     run.result_status, run.error, run.wall_s = result.status, result.error, result.wall_s
@@ -141,7 +204,7 @@ def store_result(*, session: Session, run: CaseRun, result, key_inputs: dict[str
     run.stderr_tail = (result.stderr or "")[-4000:] or None
     if result.ok:
         _record_measurement(session, run, provenance, key_inputs)
-    return _finish(session, run, status="done" if result.ok else "failed",
+    return _finish(session, run, status=CaseRunState.DONE if result.ok else CaseRunState.FAILED,
                    detail=f"{result.status} in {result.wall_s:.1f} s" + (f": {result.error}" if result.error else ""))
 
 
@@ -158,8 +221,7 @@ def _record_measurement(session: Session, run: CaseRun, provenance: dict, key_in
 
 
 def _finish(session: Session, run: CaseRun, *, status: str, error: str | None = None, detail: str | None = None) -> bool:
-    # Lock the submission first: finishers of one submission serialize, so exactly one sees the last run done.
-    session.execute(select(Submission.id).where(Submission.id == run.submission_id).with_for_update())
+    lock_submission(session, run.submission_id)
     submission = session.get(Submission, run.submission_id)
     run.status, run.finished_at, run.lease_until = status, utcnow(), None
     if error:
@@ -167,12 +229,12 @@ def _finish(session: Session, run: CaseRun, *, status: str, error: str | None = 
     session.add(Event(submission_id=run.submission_id, case_run_id=run.id, state=status, detail=detail or error))
     session.flush()
     open_runs = session.scalar(select(func.count()).select_from(CaseRun).where(  # audit re-runs never hold a grade
-        CaseRun.submission_id == submission.id, CaseRun.purpose == "grading", CaseRun.status.not_in(TERMINAL)))
+        CaseRun.submission_id == submission.id, CaseRun.purpose == CaseRunPurpose.GRADING, CaseRun.status.not_in(TERMINAL)))
     started = False
     if open_runs == 0:
         started = session.execute(
-            update(Submission).where(Submission.id == submission.id, Submission.status == "running")
-            .values(status="grading", grading_at=utcnow(), updated_at=utcnow())
+            update(Submission).where(Submission.id == submission.id, Submission.status == SubmissionState.RUNNING)
+            .values(status=SubmissionState.GRADING, grading_at=utcnow(), updated_at=utcnow())
         ).rowcount == 1
         if started:
             session.add(Event(submission_id=submission.id, state="grading"))
@@ -196,7 +258,7 @@ def stored_result(run: CaseRun):
 
     spec = parse_case(run.spec)
     provenance = Provenance.model_validate(run.provenance) if run.provenance else None
-    if run.status != "done" or run.result_status != "ok":
+    if run.status != CaseRunState.DONE or run.result_status != "ok":
         return CaseResult(spec=spec, status=run.result_status or "failed", provenance=provenance,
                           error=run.error or f"case run ended {run.status}", out_dir=run.artifact_dir)
     with np.load(Path(run.artifact_dir) / "arrays.npz", allow_pickle=False) as npz:

@@ -6,16 +6,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from fastapi import APIRouter, HTTPException, Request
-from fastapi.responses import HTMLResponse
+from fastapi import APIRouter, Request
+from fastapi.responses import HTMLResponse, PlainTextResponse
 from sqlalchemy import select
 
-from grader import assignments as logic
-from grader.api.deps import MAX_ID, SessionDep
+from grader.api.deps import SessionDep
 from grader.core.rubrics import current_grade
 from grader.models import Assignment, Extension, Submission, User
-from grader.pages.auth import PageUser
-from grader.pages.routes import TEMPLATES, _not_found, _sign_in_redirect
+from grader.pages.auth import InstructorsAssignment, SignedIn
+from grader.pages.templates import TEMPLATES
+from grader.services import assignments as logic
+from grader.services import exports
+from grader.services.visibility import visibility_of
 
 router = APIRouter(include_in_schema=False)
 
@@ -61,35 +63,15 @@ def students_view(session, assignment: Assignment) -> list[StudentRow]:
     return rows
 
 
-def _instructors_assignment(session, user, assignment_id: int) -> Assignment | None:
-    row = session.get(Assignment, assignment_id) if 0 < assignment_id <= MAX_ID else None
-    if row is None or user.course_id != row.course_id or user.role != "instructor":
-        return None
-    return row
-
-
 @router.get("/assignments/{assignment_id}", response_class=HTMLResponse)
-def assignment_page(request: Request, assignment_id: int, session: SessionDep, user: PageUser):
-    if user is None:
-        return _sign_in_redirect(request)
-    assignment = _instructors_assignment(session, user, assignment_id)
-    if assignment is None:
-        return _not_found(request, user, f"assignment {assignment_id}")
-    items = [(i, logic.visibility_of(assignment, i)) for i in logic.item_ids(assignment.lesson, assignment.items)]
+def assignment_page(request: Request, assignment: InstructorsAssignment, session: SessionDep, user: SignedIn):
+    items = [(i, visibility_of(assignment, i)) for i in logic.item_ids(assignment.lesson, assignment.items)]
     return TEMPLATES.TemplateResponse(request, "assignment.html", {
         "user": user, "a": assignment, "items": items, "students": students_view(session, assignment)})
 
 
 @router.get("/assignments/{assignment_id}/grades.csv")
-def grades_csv_download(request: Request, assignment_id: int, session: SessionDep, user: PageUser):
+def grades_csv_download(assignment: InstructorsAssignment, session: SessionDep):
     """The counted grades as CSV (the API's export), with the page's sign-in."""
-    if user is None:
-        return _sign_in_redirect(request)
-    from grader.api.routes.assignments import counted_grades_csv
-
-    if _instructors_assignment(session, user, assignment_id) is None:
-        return _not_found(request, user, f"grades of assignment {assignment_id}")
-    try:
-        return counted_grades_csv(assignment_id, session, user)
-    except HTTPException:
-        return _not_found(request, user, f"grades of assignment {assignment_id}")
+    name, text = exports.counted_grades_csv(session=session, assignment=assignment)
+    return PlainTextResponse(text, media_type="text/csv", headers={"Content-Disposition": f'attachment; filename="{name}"'})

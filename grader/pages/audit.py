@@ -5,15 +5,20 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from fastapi import APIRouter, Form, HTTPException, Request, status
+from fastapi import APIRouter, Form, Request, status
 from fastapi.responses import FileResponse, HTMLResponse, PlainTextResponse, RedirectResponse
 from pydantic import ValidationError
 
+from grader import dispatch
 from grader.api.deps import MAX_ID, SessionDep
-from grader.api.routes.audit import AuditRerunRequest, Filters, entries_csv, filtered_entries, request_rerun
-from grader.models import AuditEntry, CaseRun
-from grader.pages.auth import PageUser
-from grader.pages.routes import TEMPLATES, _not_found, _sign_in_redirect
+from grader.models import AuditEntry
+from grader.services import audit
+from grader.services.audit import AuditRerunRequest, Filters, entries_csv, filtered_entries
+from grader.services.errors import DomainError, Forbidden, NotFound
+from grader.pages.auth import PageUser, Staff
+from grader.pages.errors import not_found as _not_found
+from grader.pages.errors import sign_in_redirect as _sign_in_redirect
+from grader.pages.templates import TEMPLATES
 
 router = APIRouter(include_in_schema=False)
 CLASS_TEXT = {
@@ -32,15 +37,10 @@ def _filters(request: Request) -> tuple[Filters, str | None]:
 
 
 @router.get("/audit", response_class=HTMLResponse)
-def audit_page(request: Request, session: SessionDep, user: PageUser):
-    if user is None:
-        return _sign_in_redirect(request)
-    if user.role == "student":
-        return _not_found(request, user, "audit log")
+def audit_page(request: Request, session: SessionDep, user: Staff):
     filters, error = _filters(request)
     entries = filtered_entries(session, user, filters)
-    runs = [r for r in session.query(CaseRun).filter(CaseRun.purpose == "audit").order_by(CaseRun.id.desc()).limit(20)
-            if r.submission.course_id == user.course_id]
+    runs = audit.recent_audit_runs(session, user)
     return TEMPLATES.TemplateResponse(request, "audit.html", {
         "user": user, "entries": entries, "filters": filters, "error": error, "classes": CLASS_TEXT,
         "audit_runs": runs, "query": request.url.query, "message": request.query_params.get("message")},
@@ -48,11 +48,7 @@ def audit_page(request: Request, session: SessionDep, user: PageUser):
 
 
 @router.get("/audit.csv")
-def audit_csv(request: Request, session: SessionDep, user: PageUser):
-    if user is None:
-        return _sign_in_redirect(request)
-    if user.role == "student":
-        return _not_found(request, user, "audit log")
+def audit_csv(request: Request, session: SessionDep, user: Staff):
     filters, error = _filters(request)
     if error:
         return PlainTextResponse(error, status_code=422)
@@ -61,8 +57,10 @@ def audit_csv(request: Request, session: SessionDep, user: PageUser):
 
 
 def _entry(session, user, entry_id: int) -> AuditEntry | None:
-    entry = session.get(AuditEntry, entry_id) if 0 < entry_id <= MAX_ID else None
-    return entry if entry is not None and user.role != "student" and entry.course_id == user.course_id else None
+    try:
+        return audit.entry_of(session, user, entry_id)
+    except (NotFound, Forbidden):
+        return None
 
 
 @router.get("/audit/{entry_id}", response_class=HTMLResponse)
@@ -91,16 +89,16 @@ def audit_figure(request: Request, entry_id: int, filename: str, session: Sessio
 
 
 @router.post("/audit/reruns")
-def audit_rerun_form(request: Request, session: SessionDep, user: PageUser,
+def audit_rerun_form(request: Request, session: SessionDep, user: Staff,
                      case_run_id: int = Form(..., ge=1, le=MAX_ID),  # request_rerun trusts the API's bound
                      backend: str = Form("cpu"), precision: str = Form("32"), mode: str = Form("")):
-    if user is None:
-        return _sign_in_redirect(request)
     try:
         wanted = AuditRerunRequest(backend=backend, precision=precision, mode=mode or None)
-        run = request_rerun(case_run_id, wanted, session, user)
+        run = audit.request_rerun(session=session, user=user, case_run_id=case_run_id, request=wanted,
+                                  sender=dispatch)
         message = f"Audit re-run {run.name} (case run {run.id}) queued on {run.backend}; its entry appears here when it finishes."
-    except HTTPException as exc:
+    except DomainError as exc:  # shown on the log's page beside the form, as the form's answer
+        session.rollback()
         message = f"Refused: {exc.detail}"
     except ValidationError as exc:
         message = "Refused: " + "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in exc.errors())

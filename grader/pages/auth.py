@@ -11,9 +11,11 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
-from grader import crud
+from grader.services import access, accounts, assignments
 from grader.api.deps import SessionDep
-from grader.models import User
+from grader.core.states import STAFF, Role
+from grader.models import Assignment, Course, User
+from grader.services.errors import Forbidden, NotFound
 from grader.settings import settings
 
 COOKIE = "grader_session"
@@ -26,7 +28,7 @@ def page_user(request: Request, session: SessionDep) -> User | None:
     scheme, _, token = header.partition(" ")
     if scheme.lower() != "bearer" or not token:
         token = request.cookies.get(COOKIE, "")
-    return crud.user_by_token(session=session, token=token.strip()) if token else None
+    return accounts.user_by_token(session=session, token=token.strip()) if token else None
 
 
 PageUser = Annotated[User | None, Depends(page_user)]
@@ -39,3 +41,62 @@ def set_session_cookie(response, token: str) -> None:
 
 def clear_session_cookie(response) -> None:
     response.delete_cookie(COOKIE, path="/")
+
+
+class SignInRequired(Exception):
+    """Nobody is signed in: the page answers with a redirect to the sign-in form (grader.pages.errors)."""
+
+
+def signed_in(user: PageUser) -> User:
+    if user is None:
+        raise SignInRequired()
+    return user
+
+
+SignedIn = Annotated[User, Depends(signed_in)]
+
+
+def staff_course(course: str, session: SessionDep, user: SignedIn) -> Course:
+    """The signed-in user's course, for its instructors and auditors. Anyone else gets the not-found page: a page
+    never tells a student or another course's staff that the course exists."""
+    try:
+        found = access.own_course(session=session, user=user, name=course)
+        access.require_staff(user, action="read the course's pages")
+    except (NotFound, Forbidden) as exc:  # both read as "nothing here" on a page
+        raise NotFound(f"page of course {course}") from exc
+    return found
+
+
+def instructor_course(course: str, session: SessionDep, user: SignedIn) -> Course:
+    found = staff_course(course, session, user)
+    if user.role != Role.INSTRUCTOR:
+        raise NotFound(f"page of course {course}")
+    return found
+
+
+StaffCourse = Annotated[Course, Depends(staff_course)]
+InstructorCourse = Annotated[Course, Depends(instructor_course)]
+
+
+def instructors_assignment(assignment_id: int, session: SessionDep, user: SignedIn) -> Assignment:
+    """An assignment of the signed-in instructor's course; the not-found page for anyone else."""
+    try:
+        found = assignments.assignment_of(session=session, user=user, assignment_id=assignment_id)
+    except NotFound:
+        found = None
+    if found is None or user.role != Role.INSTRUCTOR:
+        raise NotFound(f"assignment {assignment_id}")
+    return found
+
+
+InstructorsAssignment = Annotated[Assignment, Depends(instructors_assignment)]
+
+
+def signed_in_staff(user: SignedIn) -> User:
+    """A signed-in instructor or auditor; a student gets the not-found page (the audit log is not theirs to know)."""
+    if user.role not in STAFF:
+        raise NotFound("audit log")
+    return user
+
+
+Staff = Annotated[User, Depends(signed_in_staff)]

@@ -2,7 +2,7 @@
 as the page and GET /v1/courses/COURSE/dashboard), and the resend form of a failed or stuck case run.
 
 For the course's instructors and auditors only (resending: instructors); anyone else gets the 404 page. The
-charts are drawn on request from grader.dashboard's data and cached by that data's content, so a page load draws
+charts are drawn on request from grader.services.dashboard's data and cached by that data's content, so a page load draws
 nothing new unless a grade or a measurement changed; the ETag lets the browser keep its copy.
 """
 
@@ -14,26 +14,23 @@ from functools import lru_cache
 
 from fastapi import APIRouter, Request, status
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
-from sqlalchemy import select
 
 from grader.api.deps import MAX_ID, SessionDep
 from grader.models import CaseRun, Course
-from grader.pages.auth import PageUser
-from grader.pages.routes import TEMPLATES, _not_found, _sign_in_redirect
+from grader import dispatch
+from grader.pages.auth import PageUser, SignedIn, StaffCourse, staff_course
+from grader.services.dashboard import resend_case_run
+from grader.api.errors import status_of
+from grader.services.errors import Conflict, Forbidden, NotFound
+from grader.pages.errors import not_found as _not_found
+from grader.pages.templates import TEMPLATES
 
 router = APIRouter(include_in_schema=False)
 
 
-def _staff_course(session, user, course: str) -> Course | None:
-    row = session.scalar(select(Course).where(Course.name == course))
-    if row is None or user is None or row.id != user.course_id or user.role == "student":
-        return None
-    return row
-
-
 def _page(request: Request, session, user, row: Course, *, message: str | None = None, error: str | None = None,
           status_code: int = 200) -> HTMLResponse:
-    from grader.dashboard import course_dashboard
+    from grader.services.dashboard import course_dashboard
 
     return TEMPLATES.TemplateResponse(request, "dashboard.html",
                                       {"user": user, "d": course_dashboard(session=session, course=row),
@@ -41,12 +38,7 @@ def _page(request: Request, session, user, row: Course, *, message: str | None =
 
 
 @router.get("/courses/{course}/dashboard", response_class=HTMLResponse)
-def dashboard_page(request: Request, course: str, session: SessionDep, user: PageUser, resent: int | None = None):
-    if user is None:
-        return _sign_in_redirect(request)
-    row = _staff_course(session, user, course)
-    if row is None:
-        return _not_found(request, user, f"dashboard for course {course}")
+def dashboard_page(request: Request, row: StaffCourse, session: SessionDep, user: SignedIn, resent: int | None = None):
     message = None
     run = session.get(CaseRun, resent) if resent and 0 < resent <= MAX_ID else None
     if run is not None and run.submission.course_id == row.id:  # say what is true now, not what the URL claims
@@ -56,33 +48,28 @@ def dashboard_page(request: Request, course: str, session: SessionDep, user: Pag
 
 
 @router.post("/courses/{course}/dashboard/case-runs/{case_run_id}/resend", response_class=HTMLResponse)
-def resend_form(request: Request, course: str, case_run_id: int, session: SessionDep, user: PageUser):
-    """The problems table's button. The session cookie is SameSite=Strict, so another site cannot post this."""
-    from grader.dashboard import ResendRefused, resend_case_run
-
-    if user is None:
-        return _sign_in_redirect(request)
-    row = _staff_course(session, user, course)
-    if row is None:
-        return _not_found(request, user, f"dashboard for course {course}")
+def resend_form(request: Request, row: StaffCourse, case_run_id: int, session: SessionDep, user: SignedIn):
+    """The problems table's button. The session cookie is SameSite=Strict, so another site cannot post this.
+    An auditor's or another course's press is refused by the service (grader.services.dashboard.resend_case_run)."""
     try:
-        resend_case_run(session=session, case_run_id=case_run_id, user=user)
-    except ResendRefused as refused:
+        resend_case_run(session=session, case_run_id=case_run_id, user=user, sender=dispatch)
+    except (Conflict, Forbidden) as refused:  # shown on the dashboard beside the button, as the form's answer
         session.rollback()
-        if refused.status_code == 404:
-            return _not_found(request, user, f"case run {case_run_id}")
-        return _page(request, session, user, row, error=refused.detail, status_code=refused.status_code)
-    return RedirectResponse(f"/courses/{course}/dashboard?resent={case_run_id}#problems",
+        return _page(request, session, user, row, error=refused.detail, status_code=status_of(refused))
+    return RedirectResponse(f"/courses/{row.name}/dashboard?resent={case_run_id}#problems",
                             status_code=status.HTTP_303_SEE_OTHER)
 
 
 @router.get("/courses/{course}/dashboard/charts/{name}.svg")
 def chart(request: Request, course: str, name: str, session: SessionDep, user: PageUser):
-    from grader.dashboard import backend_spread, graded_reports, predictions
+    from grader.services.dashboard import backend_spread, graded_reports, predictions
 
     if user is None:
         return Response(status_code=status.HTTP_401_UNAUTHORIZED)
-    row = _staff_course(session, user, course)
+    try:
+        row = staff_course(course, session, user)
+    except NotFound:
+        row = None
     item = name.removeprefix("predictions-")
     if row is None or not (name == "backends" or (name.startswith("predictions-") and item in ("H1", "H4"))):
         return _not_found(request, user, f"chart {name}")
@@ -113,7 +100,7 @@ def _svg(name: str, data: str) -> bytes:
     import matplotlib
     from matplotlib.figure import Figure
 
-    from grader.dashboard import BackendSpread, PredictionPlot
+    from grader.services.dashboard import BackendSpread, PredictionPlot
 
     with _DRAWING, matplotlib.rc_context({"svg.fonttype": "none", "font.size": 9, "svg.hashsalt": "dashboard"}):
         if name == "backends":

@@ -12,28 +12,19 @@ from sqlalchemy import select
 
 from grader.api.deps import SessionDep
 from grader.core import rubrics as store
-from grader.models import Course, Regrade
-from grader.pages.auth import PageUser
-from grader.pages.routes import TEMPLATES, _not_found, _sign_in_redirect
-from grader.regrade import commit_regrade, preview_regrade, record
+from grader.models import Regrade
+from grader.pages.auth import InstructorCourse, SignedIn, StaffCourse
+from grader.pages.errors import not_found as _not_found
+from grader.pages.templates import TEMPLATES
+from grader.services.regrade import commit_regrade, preview_regrade, record
 
 router = APIRouter(include_in_schema=False)
 
 
-def _staff_course(session, user, course: str) -> Course | None:
-    row = session.scalar(select(Course).where(Course.name == course))
-    if row is None or row.id != user.course_id or user.role == "student":
-        return None
-    return row
-
-
 @router.get("/courses/{course}/rubrics", response_class=HTMLResponse)
-def rubrics_page(request: Request, course: str, session: SessionDep, user: PageUser, lesson: str = "L03"):
-    if user is None:
-        return _sign_in_redirect(request)
-    row = _staff_course(session, user, course)
-    if row is None or lesson not in ("L03",):
-        return _not_found(request, user, f"rubrics of course {course}")
+def rubrics_page(request: Request, row: StaffCourse, session: SessionDep, user: SignedIn, lesson: str = "L03"):
+    if lesson not in ("L03",):
+        return _not_found(request, user, f"rubrics of course {row.name} for lesson {lesson}")
     versions = store.sync_shipped(session, lesson)
     session.commit()
     regrades = [record(r, row) for r in session.scalars(
@@ -44,15 +35,10 @@ def rubrics_page(request: Request, course: str, session: SessionDep, user: PageU
 
 
 @router.get("/courses/{course}/regrade", response_class=HTMLResponse)
-def regrade_preview_page(request: Request, course: str, session: SessionDep, user: PageUser, version: str = "",
+def regrade_preview_page(request: Request, row: StaffCourse, session: SessionDep, user: SignedIn, version: str = "",
                          lesson: str = "L03"):
     from rubric import ArchivedRubric
 
-    if user is None:
-        return _sign_in_redirect(request)
-    row = _staff_course(session, user, course)
-    if row is None:
-        return _not_found(request, user, f"regrade of course {course}")
     try:
         preview = preview_regrade(session, course=row, lesson=lesson, version=version)
     except (LookupError, ArchivedRubric) as exc:
@@ -63,12 +49,7 @@ def regrade_preview_page(request: Request, course: str, session: SessionDep, use
 
 
 @router.post("/courses/{course}/regrade")
-def regrade_commit_page(request: Request, course: str, session: SessionDep, user: PageUser,
+def regrade_commit_page(row: InstructorCourse, session: SessionDep, user: SignedIn,
                         version: str = Form(...), lesson: str = Form("L03")):
-    if user is None:
-        return _sign_in_redirect(request)
-    row = _staff_course(session, user, course)
-    if row is None or user.role != "instructor":
-        return _not_found(request, user, f"regrade of course {course}")
     regrade, _ = commit_regrade(session, course=row, lesson=lesson, version=version, user=user)
     return RedirectResponse(f"/courses/{row.name}/rubrics#regrade-{regrade.id}", status_code=status.HTTP_303_SEE_OTHER)

@@ -11,8 +11,10 @@ from datetime import datetime
 from pathlib import Path
 
 from grader.models import CaseRun, Grade, Submission, utcnow
+from grader.services.visibility import GradeView
 from grader.settings import settings
 from rubric.metrics import TUMBLE_EXPLANATION, tumble_angle_deg
+from grader.core.states import CaseRunState, SubmissionState
 
 # A case still running after this long on a fresh worker is most likely compiling Genesis kernels (~100 s once).
 FIRST_RUN_NOTE_AFTER_S = 20.0
@@ -92,7 +94,7 @@ class LaneRow:
 class ReportView:
     submission: Submission
     runs: list[RunRow]
-    grade: Grade | None
+    grade: GradeView | None
     items: list[ItemRow] = field(default_factory=list)
     parts: list[tuple[str, list[ItemRow]]] = field(default_factory=list)
     config_findings: list[str] = field(default_factory=list)
@@ -136,7 +138,7 @@ class ReportView:
 
     @property
     def finished(self) -> bool:
-        return self.submission.status in ("graded", "failed") and not self.completing
+        return self.submission.status in (SubmissionState.GRADED, SubmissionState.FAILED) and not self.completing
 
 
 def _elapsed(run: CaseRun, now: datetime) -> float | None:
@@ -146,7 +148,7 @@ def _elapsed(run: CaseRun, now: datetime) -> float | None:
 
 
 def _files(run: CaseRun) -> list[str]:
-    from grader.api.routes.files import EVIDENCE
+    from grader.services.exports import EVIDENCE
 
     if not run.artifact_dir or not Path(run.artifact_dir).is_dir():
         return []
@@ -197,20 +199,21 @@ def _rubric(grade: Grade):
         return None
 
 
-def report_view(submission: Submission, grade: Grade | None) -> ReportView:
+def report_view(submission: Submission, grade: GradeView | None) -> ReportView:
+    """`grade`: the current grade as the reader may see it (grader.services.visibility), None when none is shown."""
     now = utcnow()
     runs = [RunRow(name=r.name, kind=r.kind, status=r.status, result_status=r.result_status, backend=r.backend,
                    actual_backend=r.actual_backend, elapsed_s=_elapsed(r, now), error=r.error,
                    reused_from_id=r.reused_from_id, provenance=r.provenance or {}, files=_files(r))
             for r in submission.case_runs]
     view = ReportView(submission=submission, runs=runs, grade=grade, lanes=_lanes(submission.case_runs))
-    view.first_run_note = any(r.status == "running" and (r.elapsed_s or 0) > FIRST_RUN_NOTE_AFTER_S for r in runs)
+    view.first_run_note = any(r.status == CaseRunState.RUNNING and (r.elapsed_s or 0) > FIRST_RUN_NOTE_AFTER_S for r in runs)
     folder = settings.figures_dir(submission.id)
     view.figures = sorted(p.name for p in folder.glob("*.png")) if folder.is_dir() else []
     if grade is None:
         return view
     report = grade.report
-    rubric = _rubric(grade)
+    rubric = _rubric(grade.stored)
     for item in report.get("items", []):
         counted = item["verdict"] not in ("inconclusive", "pending")
         view.items.append(ItemRow(

@@ -21,16 +21,16 @@ def grades_sent(api, monkeypatch) -> list[int]:
 def store_measurements(names: set[str] | None = None) -> dict[str, int]:
     """bob's earlier submission of the reference sheet, its cases (or those named) done and stored as Measurements
     under the worker's content key, as a worker that measured them would have left them; their ids by case name."""
-    from grader import crud, sheets
+    from grader.services import accounts, sheets, submissions
     from grader.core.db import new_session
     from grader.models import Measurement, User
-    from worker import reuse
+    from grader.core import content_key as reuse
 
     out = {}
     with new_session() as session:
         bob = session.scalar(select(User).where(User.name == "bob"))
         specs = sheets.cases_to_run(sheets.parse_sheet(reference_sheet()))
-        earlier = crud.create_submission(session=session, student=bob, lesson="L03", sheet=reference_sheet(),
+        earlier = submissions.create_submission(session=session, student=bob, lesson="L03", sheet=reference_sheet(),
                                          specs=specs, force_rerun=False)
         session.flush()
         for spec, run in zip(specs, earlier.case_runs):
@@ -90,7 +90,7 @@ def test_force_rerun_queues_every_case_even_when_stored(api, grades_sent):
 
 
 def test_a_measurement_under_other_engine_versions_is_not_reused(api, grades_sent, monkeypatch):
-    from worker import reuse
+    from grader.core import content_key as reuse
 
     store_measurements()
     monkeypatch.setattr(reuse, "engine_versions", lambda: {"genesis-world": "9.9.9", "quadrants": "x", "torch": "x"})

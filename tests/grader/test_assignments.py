@@ -310,7 +310,7 @@ def test_a_late_attempt_is_penalized_per_day_and_the_export_shows_raw_beside_cou
 
 
 def test_the_penalty_counts_each_started_day_and_stops_at_the_cap():
-    from grader.assignments import penalty_fraction
+    from grader.services.assignments import penalty_fraction
     from grader.models import Assignment
 
     a = Assignment(late_penalty_per_day=0.25, late_penalty_cap=0.6)
@@ -419,7 +419,7 @@ def test_only_an_instructor_imports_a_roster(api):
 
 
 def test_two_submissions_racing_for_one_attempt_number_let_one_in(api, monkeypatch):
-    from grader import assignments
+    from grader.services import assignments
 
     aid = create(api, max_attempts=3).json()["id"]
     assert submit(api, aid).status_code == 202

@@ -6,14 +6,14 @@ from __future__ import annotations
 import pytest
 from sqlalchemy.exc import DatabaseError
 
-from tests.factories import reference_sheet
+from tests.factories import audit_entry_for, reference_sheet
 
 
 def _graded_like(api):
     """A submission and one 'done' case run as stored rows, plus one audit entry about it (no engine needed to
     test access rules and the append-only guard)."""
     from grader.core.db import new_session
-    from grader.models import AuditEntry, CaseRun
+    from grader.models import CaseRun
 
     response = api.client.post("/v1/submissions", json={"sheet": reference_sheet() | {"student": "alice"}},
                                headers=api.as_("alice"))
@@ -22,10 +22,7 @@ def _graded_like(api):
     with new_session() as session:
         run = session.query(CaseRun).filter_by(submission_id=submission, name="N1").one()
         run.status, run.result_status, run.actual_backend = "done", "ok", "cpu"
-        entry = AuditEntry(course_id=run.submission.course_id, lesson="L03", case="N1", spec_key=run.spec_key,
-                           spec=run.spec, left_case_run_id=run.id, right_case_run_id=run.id,
-                           left_variant="cpu/32/warm", right_variant="cpu/64/warm", classification="numeric_drift",
-                           summary="stored by the test", figures=[])
+        entry = audit_entry_for(run)
         session.add(entry)
         session.commit()
         return run.id, entry.id

@@ -119,7 +119,7 @@ def test_a_regrade_skips_a_grade_whose_figures_are_being_drawn(api, measured):
     from grader.core.db import new_session
     from grader.core.rubrics import current_grade
     from grader.models import Submission
-    from grader.regrade import _regrade_one
+    from grader.services.regrade import _regrade_one
     from rubric import load_rubric
     from worker.grading import grade_submission
 

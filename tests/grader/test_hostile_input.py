@@ -293,7 +293,7 @@ def test_the_audit_csv_writes_utc_with_an_offset():
     from datetime import datetime
     from types import SimpleNamespace
 
-    from grader.api.routes.audit import entries_csv
+    from grader.services.audit import entries_csv
 
     entry = SimpleNamespace(id=1, created_at=datetime(2026, 1, 2, 3, 4, 5), lesson="L03", case="N1",
                             left_case_run_id=1, right_case_run_id=2, left_variant="cpu/32/warm",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from worker import reuse
+from grader.core import content_key as reuse
 
 
 def test_the_migration_creates_exactly_the_models(tmp_path):
@@ -61,7 +61,7 @@ def test_migration_0009_makes_every_grade_stored_before_it_complete(tmp_path):
     from sqlalchemy import select, text
     from sqlalchemy.orm import Session
 
-    from grader import crud
+    from grader.services import accounts, submissions
     from grader.core.db import MIGRATIONS, make_engine, migrate
     from grader.models import Grade, User
     from tests.factories import create_people, reference_sheet
@@ -72,7 +72,7 @@ def test_migration_0009_makes_every_grade_stored_before_it_complete(tmp_path):
     with Session(engine) as session:
         create_people(session, course="l03", other_course="other")
         alice = session.scalar(select(User).where(User.name == "alice"))
-        submission = crud.create_submission(session=session, student=alice, lesson="L03", sheet=reference_sheet(),
+        submission = submissions.create_submission(session=session, student=alice, lesson="L03", sheet=reference_sheet(),
                                             specs=[], force_rerun=False)
         session.flush()
         session.add(Grade(submission_id=submission.id, rubric_lesson="L03", rubric_version="2", rubric_hash="x",

@@ -95,12 +95,12 @@ def test_predictions_and_measurements_by_backend_equal_the_json_and_the_charts_l
 
 def _student(stack, name: str) -> tuple[int, str]:
     """A third student of the course (the shared graded class stays as the page tests expect), with a token."""
-    from grader import crud
+    from grader.services import accounts
 
     with Session(stack.engine) as session:
         course = session.scalar(select(Course).where(Course.name == COURSE))
-        user = crud.get_or_create_user(session=session, course=course, name=name, role="student")
-        token = crud.create_token(session=session, user=user)
+        user = accounts.get_or_create_user(session=session, course=course, name=name, role="student")
+        token = accounts.create_token(session=session, user=user)
         session.commit()
         return user.id, token
 
@@ -108,7 +108,7 @@ def _student(stack, name: str) -> tuple[int, str]:
 def test_a_failed_and_a_stuck_run_are_resent_from_the_dashboard_and_graded(browser, stack, graded):
     """Carol's submission lost deliveries to dead workers: one case run used up its deliveries (the real worker
     fails it when its last message arrives), another is held by a worker that died (a dead lease, no message)."""
-    from grader import crud, sheets
+    from grader.services import sheets, submissions
     from grader.client import Client
     from grader.models import User
     from grader.settings import settings
@@ -118,7 +118,7 @@ def test_a_failed_and_a_stuck_run_are_resent_from_the_dashboard_and_graded(brows
     sheet = reference_sheet() | {"student": "carol"}
     with Session(stack.engine) as session:
         user = session.scalar(select(User).where(User.name == "carol"))
-        submission = crud.create_submission(session=session, student=user, lesson="L03", sheet=sheet,
+        submission = submissions.create_submission(session=session, student=user, lesson="L03", sheet=sheet,
                                             specs=sheets.cases_to_run(sheets.parse_sheet(sheet)), force_rerun=False)
         session.flush()
         runs = {r.name: r for r in submission.case_runs}

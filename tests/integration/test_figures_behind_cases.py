@@ -23,14 +23,14 @@ def _events(stack, submission_id: int) -> list[Event]:
 
 def _student_of_another_course(stack, name: str):
     """A student of the stack's other course, so that the shared class the page tests read stays as they expect."""
-    from grader import crud
+    from grader.services import accounts
     from grader.client import Client
     from grader.models import Course
 
     with Session(stack.engine) as session:
         course = session.scalar(select(Course).where(Course.name == OTHER_COURSE))
-        user = crud.get_or_create_user(session=session, course=course, name=name, role="student")
-        token = crud.create_token(session=session, user=user)
+        user = accounts.get_or_create_user(session=session, course=course, name=name, role="student")
+        token = accounts.create_token(session=session, user=user)
         session.commit()
     return Client(stack.url, token)
 

@@ -50,13 +50,13 @@ def test_worker_killed_mid_case_requeues_and_grades_once(stack):
 
 def test_reconciler_resends_runs_whose_worker_vanished(stack):
     """Case runs left 'running' past their lease (a worker machine lost, its messages gone) are re-queued and finish."""
-    from grader import crud, sheets
+    from grader.services import sheets, submissions
     from grader.models import User
 
     with Session(stack.engine) as session:
         alice = session.query(User).filter_by(name="alice").one()
         sheet = reference_sheet()
-        submission = crud.create_submission(session=session, student=alice, lesson="L03", sheet=sheet,
+        submission = submissions.create_submission(session=session, student=alice, lesson="L03", sheet=sheet,
                                             specs=sheets.cases_to_run(sheets.parse_sheet(sheet)), force_rerun=False)
         session.flush()
         for run in submission.case_runs:  # claimed by a host that died; never on the broker any more

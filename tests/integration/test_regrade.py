@@ -24,13 +24,13 @@ TIGHT = 1e-6
 
 @pytest.fixture(scope="module")
 def regrade_class(stack):
-    from grader import crud
+    from grader.services import accounts
 
     with Session(stack.engine) as session:
-        course = crud.get_or_create_course(session=session, name=COURSE)
+        course = accounts.get_or_create_course(session=session, name=COURSE)
         for name, role in (("carol", "student"), ("dave", "student"), ("rita", "instructor"), ("ann", "auditor")):
-            user = crud.get_or_create_user(session=session, course=course, name=name, role=role)
-            stack.tokens[name] = crud.create_token(session=session, user=user)
+            user = accounts.get_or_create_user(session=session, course=course, name=name, role=role)
+            stack.tokens[name] = accounts.create_token(session=session, user=user)
         session.commit()
     wrong = copy.deepcopy(reference_sheet()) | {"student": "dave"}
     wrong["answers"]["H3"]["high"] = "farther"

@@ -13,7 +13,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.models import Measurement
-from worker import reuse
+from grader.core import content_key as reuse
 from rubric import case_metrics, cases_to_run, expected_arrays, load_rubric, parse_case, parse_sheet
 from rubric.metrics import parse_metrics
 from tests.integration.helpers import case_runs, events, grades_of, submit_and_wait

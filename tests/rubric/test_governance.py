@@ -17,7 +17,7 @@ from rubric import (
     load_rubric,
     parse_sheet,
     publish_version,
-    regrade_preview,
+    report_changes,
 )
 from rubric import rubrics
 from rubric.governance import rubric_changes
@@ -134,7 +134,7 @@ def test_regrade_under_a_new_version_previews_the_per_student_diff_and_keeps_old
     v3 = publish_version(edited(v2, version="3", review=NEW_REVIEW,
                                 high_lane_unchanged={"value": delta / 2, **NEW_REVIEW}), [v2], used_versions={"2"})
     new = {s.student: grade_sheet(s, results, v3) for s in (reference, misconceived)}
-    preview = regrade_preview(old, new)
+    preview = report_changes(old, new)
 
     rows = {row.student: row for row in preview.rows}
     assert set(rows) == {"reference", "bob"}
@@ -163,7 +163,7 @@ def test_grading_under_the_archived_v1_is_refused_but_v1_still_loads(measured):
 def test_preview_lists_students_on_one_side_only(measured):
     results, reference = _results(measured)
     report = grade_sheet(reference, results, load_rubric("L03"))
-    preview = regrade_preview({"reference": report}, {})
+    preview = report_changes({"reference": report}, {})
     row = preview.rows[0]
     assert (row.old_score, row.new_score, row.delta) == (report.total, None, None)
     assert len(row.changed_items) == len(report.items)

@@ -12,7 +12,7 @@ from tests.factories import create_people, reference_sheet
 
 
 def test_a_starting_worker_resends_the_runs_of_dead_processes_on_its_host_ahead_of_the_queue(tmp_path, monkeypatch):
-    from grader import crud, sheets
+    from grader.services import sheets, submissions
     from grader.core import lifecycle
     from grader.core.db import make_engine, migrate
     from grader.models import CaseRun, Event, User, utcnow
@@ -28,7 +28,7 @@ def test_a_starting_worker_resends_the_runs_of_dead_processes_on_its_host_ahead_
     with Session(engine) as session:
         create_people(session, course="l03", other_course="other")
         sheet = reference_sheet()
-        submission = crud.create_submission(session=session, student=session.scalar(select(User).filter_by(name="alice")),
+        submission = submissions.create_submission(session=session, student=session.scalar(select(User).filter_by(name="alice")),
                                             lesson="L03", sheet=sheet, force_rerun=False,
                                             specs=sheets.cases_to_run(sheets.parse_sheet(sheet)))
         session.flush()

@@ -83,14 +83,14 @@ class Stack:
 def _people(engine, students: int) -> tuple[dict[str, str], list[str]]:
     from sqlalchemy.orm import Session
 
-    from grader import crud
+    from grader.services import accounts
 
     names = [f"s{i:03d}" for i in range(students)]
     with Session(engine) as session:
-        course = crud.get_or_create_course(session=session, name=COURSE)
-        tokens = {name: crud.create_token(session=session, user=crud.get_or_create_user(
+        course = accounts.get_or_create_course(session=session, name=COURSE)
+        tokens = {name: accounts.create_token(session=session, user=accounts.get_or_create_user(
             session=session, course=course, name=name, role="student")) for name in names}
-        tokens["prof"] = crud.create_token(session=session, user=crud.get_or_create_user(
+        tokens["prof"] = accounts.create_token(session=session, user=accounts.get_or_create_user(
             session=session, course=course, name="prof", role="instructor"))
         session.commit()
     return tokens, names

@@ -1,11 +1,12 @@
 """Case-run actions for a course's instructors: re-send a failed or stuck case run (the dashboard's resend)."""
 
-from fastapi import APIRouter, HTTPException, status
+from fastapi import APIRouter, status
 
+from grader import dispatch
 from grader.api.deps import CurrentUser, RowId, SessionDep
 from grader.api.responses import errors
-from grader.dashboard import ResendRefused, resend_case_run
 from grader.schemas import CaseRunPublic
+from grader.services.dashboard import resend_case_run
 
 router = APIRouter(prefix="/case-runs", tags=["case runs"], responses=errors(401, 403, 404, 422))
 
@@ -18,8 +19,4 @@ def resend(case_run_id: RowId, session: SessionDep, user: CurrentUser):
     The state change is recorded as a `resent` event naming who resent it and keeping the previous error; a failed
     submission goes back to running, and a graded one keeps its grade in its history, superseded, and is graded
     again when its runs finish."""
-    try:
-        return resend_case_run(session=session, case_run_id=case_run_id, user=user)
-    except ResendRefused as refused:
-        session.rollback()
-        raise HTTPException(refused.status_code, refused.detail) from None
+    return resend_case_run(session=session, case_run_id=case_run_id, user=user, sender=dispatch)

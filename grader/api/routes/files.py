@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path as FilePath
 from typing import Annotated, Literal
 
 from fastapi import APIRouter, HTTPException, Path, status
@@ -10,12 +9,12 @@ from fastapi.responses import FileResponse
 
 from grader.api.deps import Name, SubmissionDep
 from grader.api.responses import errors, file_ok
+from grader.services.exports import EVIDENCE
+from grader.services import exports
 from grader.settings import settings
+from grader.core.states import SubmissionState
 
 router = APIRouter(prefix="/submissions/{submission_id}", tags=["files"], responses=errors(401, 404, 422))
-EVIDENCE = {"arrays.npz": "application/octet-stream", "provenance.json": "application/json",
-            "metrics.json": "application/json",
-            "spec.json": "application/json", "stdout.txt": "text/plain", "stderr.txt": "text/plain"}
 # A file route only ever names a file by one of these shapes, so no path (.., /, NUL) reaches the filesystem.
 EvidenceName = Literal[tuple(EVIDENCE)]
 FigureName = Annotated[str, Path(pattern=r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,250}\.png$",
@@ -26,19 +25,14 @@ FigureName = Annotated[str, Path(pattern=r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,250}\.p
             responses=file_ok("The file", *sorted(set(EVIDENCE.values()))))
 def case_run_file(submission: SubmissionDep, name: Name, filename: EvidenceName):
     """One evidence file of a case run (arrays.npz, provenance.json, metrics.json, spec.json, stdout, stderr)."""
-    run = next((r for r in submission.case_runs if r.name == name), None)
-    if run is None or filename not in EVIDENCE or not run.artifact_dir:
-        raise HTTPException(status.HTTP_404_NOT_FOUND, f"no file {filename!r} for case run {name!r}")
-    path = FilePath(run.artifact_dir) / filename
-    if not path.is_file():
-        raise HTTPException(status.HTTP_404_NOT_FOUND, f"{filename} was not written by case run {name!r}")
-    return FileResponse(path, media_type=EVIDENCE[filename], filename=f"{submission.id}-{name}-{filename}")
+    path, media_type = exports.evidence_file(submission=submission, name=name, filename=filename)
+    return FileResponse(path, media_type=media_type, filename=f"{submission.id}-{name}-{filename}")
 
 
 @router.get("/figures", response_model=list[str], responses=errors(409, _409="Not graded yet"))
 def list_figures(submission: SubmissionDep) -> list[str]:
     """Names of the lab figures the worker drew from this submission's measurements when it graded it."""
-    if submission.status != "graded":
+    if submission.status != SubmissionState.GRADED:
         raise HTTPException(status.HTTP_409_CONFLICT, f"submission {submission.id} is {submission.status}")
     folder = settings.figures_dir(submission.id)
     return sorted(p.name for p in folder.glob("*.png")) if folder.is_dir() else []

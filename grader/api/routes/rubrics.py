@@ -12,13 +12,14 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 
-from grader.api.deps import CurrentUser, Name, SessionDep
-from grader.api.errors import error, field_errors
+from grader.api.deps import CurrentUser, SessionDep, StaffCourse, StaffUser
+from grader.api.errors import error
+from grader.services.errors import field_errors
 from grader.api.responses import errors
-from grader.api.routes.courses import staff_course
 from grader.core import rubrics as store
+from grader.services import access
 from grader.models import Regrade, RubricVersion
-from grader.regrade import RegradePreview, RegradeRecord, commit_regrade, preview_regrade, record
+from grader.services.regrade import RegradePreview, RegradeRecord, commit_regrade, preview_regrade, record
 from grader.schemas import UtcDateTime
 
 LESSON = r"^L[0-9]{2}$"
@@ -50,16 +51,9 @@ def _public(row: RubricVersion) -> RubricVersionPublic:
                                published_at=row.published_at, review=row.content.get("review", {}))
 
 
-def _instructor(user, action: str) -> None:
-    if user.role != "instructor":
-        raise HTTPException(status.HTTP_403_FORBIDDEN, f"only instructors may {action}")
-
-
 @router.get("/rubrics/{lesson}/versions", response_model=list[RubricVersionPublic])
-def list_versions(lesson: Annotated[str, Path(pattern=LESSON)], session: SessionDep, user: CurrentUser):
-    """Every rubric version of a lesson the service knows, oldest first: shipped with it or published."""
-    if user.role == "student":
-        raise HTTPException(status.HTTP_403_FORBIDDEN, "students do not read rubric versions")
+def list_versions(lesson: Annotated[str, Path(pattern=LESSON)], session: SessionDep, user: StaffUser):
+    """Every rubric version of a lesson the service knows, oldest first: shipped with it or published (staff)."""
     rows = store.sync_shipped(session, lesson)
     session.commit()
     return [_public(r) for r in rows]
@@ -73,7 +67,7 @@ def publish(session: SessionDep, user: CurrentUser, content: Annotated[dict[str,
     from rubric.governance import RubricGovernanceError
     from rubric.specs import describe_errors
 
-    _instructor(user, "publish rubric versions")
+    access.require_instructor(user, action="publish rubric versions")
     try:
         row = store.publish(session, content=content, user=user)
     except ValidationError as exc:
@@ -93,13 +87,12 @@ def _version_or_404(session, lesson: str, version: str):
 
 @router.get("/courses/{course}/regrade-preview", response_model=RegradePreview,
             responses={**errors(404), **CONFLICT})
-def regrade_preview(course: Name, session: SessionDep, user: CurrentUser,
+def regrade_preview(row: StaffCourse, session: SessionDep,
                     version: Annotated[str, Query(pattern=VERSION, max_length=32)],
                     lesson: Annotated[str, Query(pattern=LESSON)] = "L03"):
     """Per student, the old and new totals and each item that changes and why; nothing is written."""
     from rubric import ArchivedRubric
 
-    row = staff_course(course, session, user)
     _version_or_404(session, lesson, version)
     try:
         return preview_regrade(session, course=row, lesson=lesson, version=version)
@@ -109,12 +102,11 @@ def regrade_preview(course: Name, session: SessionDep, user: CurrentUser,
 
 @router.post("/courses/{course}/regrades", response_model=RegradeRecord, status_code=status.HTTP_201_CREATED,
              responses={**errors(404, 413), **CONFLICT})
-def regrade_commit(course: Name, request: RegradeRequest, session: SessionDep, user: CurrentUser):
+def regrade_commit(row: StaffCourse, request: RegradeRequest, session: SessionDep, user: CurrentUser):
     """Regrade the course's lesson under the version and keep the old grades; later submissions use it too."""
     from rubric import ArchivedRubric
 
-    row = staff_course(course, session, user)
-    _instructor(user, "commit a regrade")
+    access.require_instructor(user, action="commit a regrade")
     _version_or_404(session, request.lesson, request.version)
     try:
         regrade, _ = commit_regrade(session, course=row, lesson=request.lesson, version=request.version, user=user)
@@ -128,8 +120,7 @@ def regrade_commit(course: Name, request: RegradeRequest, session: SessionDep, u
 
 
 @router.get("/courses/{course}/regrades", response_model=list[RegradeRecord], responses=errors(404))
-def regrades(course: Name, session: SessionDep, user: CurrentUser):
+def regrades(row: StaffCourse, session: SessionDep):
     """Every committed regrade of the course, newest first, with who committed it and when."""
-    row = staff_course(course, session, user)
     return [record(r, row) for r in session.scalars(
         select(Regrade).where(Regrade.course_id == row.id).order_by(Regrade.id.desc()))]

@@ -11,8 +11,11 @@ from functools import cache
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session, defer
 
-from grader.models import Assignment, Extension, Submission, User
-from grader.timezones import iso
+from grader.core.states import Role
+from grader.models import Assignment, Course, Extension, Submission, User, utcnow
+from grader.services.access import MAX_ID
+from grader.services.errors import Invalid, NotFound, Refused
+from grader.core.timezones import iso
 
 DAY_S = 86400
 HOUR = timedelta(hours=1)
@@ -56,15 +59,6 @@ def dates_for(*, session: Session, assignment: Assignment, student: User) -> Dat
 def attempts_used(*, session: Session, assignment: Assignment, student: User) -> int:
     return session.scalar(select(func.count()).select_from(Submission).where(
         Submission.assignment_id == assignment.id, Submission.student_id == student.id))
-
-
-class Refused(Exception):
-    """A submission the assignment does not take now; `field` and `rule` say why (with the time that applies).
-    `retry_after_s` is set when waiting helps (the hourly limit): the API answers 429 with Retry-After."""
-
-    def __init__(self, field: str, rule: str, retry_after_s: int | None = None):
-        super().__init__(rule)
-        self.field, self.rule, self.retry_after_s = field, rule, retry_after_s
 
 
 def submitted_last_hour(*, session: Session, assignment: Assignment, student: User, now: datetime) -> list[datetime]:
@@ -138,32 +132,6 @@ def counted_score(assignment: Assignment, submission: Submission, raw: float, ma
     return Counted(submission, raw, max_total, penalty, round(raw * (1.0 - penalty), 6))
 
 
-def grade_now(*, session: Session, submission: Submission, sheet):
-    """Grade a checkpoint sheet in the request that stores it: every case it needs (the lesson's own) was finished on
-    a stored measurement when submitted (grader.core.lifecycle.reuse_at_admission), so nothing is run or queued and
-    its report lists the runs that decided the grade. The caller commits."""
-    import time
-
-    import rubric
-
-    from grader.core.lifecycle import stored_result, touch
-    from grader.core.rubrics import course_rubric
-    from grader.models import Grade, utcnow
-
-    started = time.perf_counter()
-    book = course_rubric(session, submission.course_id, submission.lesson)
-    report = rubric.grade_sheet(sheet, {run.name: stored_result(run) for run in submission.case_runs}, book)
-    grade = Grade(submission_id=submission.id, rubric_lesson=book.lesson, rubric_version=str(book.version),
-                  rubric_hash=book.content_hash, total=report.total, max_total=report.max_total,
-                  report=report.model_dump(mode="json"), execution_s=time.perf_counter() - started,
-                  completed_at=utcnow())  # a checkpoint set has no figures or lab check to draw
-    session.add(grade)
-    submission.graded_at = utcnow()
-    touch(submission, "graded", f"{report.total:g} / {report.max_total:g} (no case run: graded at once on the "
-                                f"lesson's cases as already measured)", session=session)
-    return grade
-
-
 def _graded(*, session: Session, assignment: Assignment, student_id: int | None = None):
     from grader.models import Grade
 
@@ -220,57 +188,49 @@ def attempts_by_student(*, session: Session, assignment: Assignment) -> dict[int
     return out
 
 
-def visibility_of(assignment: Assignment, item_id: str) -> str:
-    """The item's own visibility where the assignment sets one, else the assignment's."""
-    return (assignment.item_visibility or {}).get(item_id, assignment.visibility)
+def assignment_of(*, session: Session, user: User, assignment_id: int) -> Assignment:
+    """An assignment of the caller's course; NotFound for any other."""
+    row = session.get(Assignment, assignment_id) if 0 < assignment_id <= MAX_ID else None
+    if row is None or row.course_id != user.course_id:
+        raise NotFound(f"assignment {assignment_id} not found")
+    return row
 
 
-def withheld_items(*, session: Session, submission: Submission, user: User, now: datetime) -> dict[str, str]:
-    """{item id: why `user` may not see its score and feedback yet}. Staff see everything; a student sees an item at
-    once (immediate), from the due date that applies to them (after_due) or once the assignment is released."""
-    assignment = submission.assignment
-    if assignment is None or user.role != "student":
-        return {}
-    why = {"immediate": None}
-    kinds = {visibility_of(assignment, i) for i in item_ids(assignment.lesson, assignment.items)}
-    if "after_due" in kinds:
-        due = dates_for(session=session, assignment=assignment, student=submission.student).due_at
-        why["after_due"] = None if now >= due else (
-            f"shown after the due date, {iso(due, assignment.course.timezone)}")
-    if "on_release" in kinds:
-        why["on_release"] = None if assignment.released_at is not None else (
-            f"shown once assignment {assignment.id} is released by an instructor")
-    hidden = {i: why[visibility_of(assignment, i)] for i in item_ids(assignment.lesson, assignment.items)}
-    return {i: reason for i, reason in hidden.items() if reason}
+def of_course(*, session: Session, course: Course) -> list[Assignment]:
+    """The course's assignments, by due date."""
+    return list(session.scalars(select(Assignment).where(Assignment.course_id == course.id)
+                                .order_by(Assignment.due_at, Assignment.id)))
 
 
-def withheld(*, session: Session, submission: Submission, user: User, now: datetime) -> str | None:
-    """Why `user` may see none of this submission's scores and feedback yet (every item withheld), or None."""
-    hidden = withheld_items(session=session, submission=submission, user=user, now=now)
-    if not hidden or len(hidden) < len(item_ids(submission.assignment.lesson, submission.assignment.items)):
-        return None
-    return "scores and feedback are " + " and ".join(sorted(set(hidden.values())))
+def create(*, session: Session, course: Course, user: User, fields: dict) -> Assignment:
+    """Store a new assignment of the course (fields validated by grader.schemas.AssignmentCreate); Invalid naming
+    each per-item visibility that names no item of the assignment. Commits."""
+    held = item_ids(fields["lesson"], fields["items"])
+    strangers = [{"field": f"item_visibility.{item}",
+                  "rule": f"not an item of this assignment ({fields['items']}: {', '.join(held)})"}
+                 for item in fields.get("item_visibility") or {} if item not in held]
+    if strangers:
+        raise Invalid("invalid assignment", strangers)
+    assignment = Assignment(course_id=course.id, created_by_id=user.id, **fields)
+    session.add(assignment)
+    session.commit()
+    return assignment
 
 
-def shown_report(report: dict, hidden: dict[str, str]) -> dict:
-    """The stored report as a student may see it: each withheld item keeps its question, points and the student's
-    own prediction, but its score is None and its feedback says when it will be shown; the total counts the shown
-    items only and `pending` says which points are still to come. Nothing is regraded on release."""
-    if not hidden:
-        return report
-    items, total, shown_max, pending_points = [], 0.0, 0.0, 0.0
-    for item in report.get("items", []):
-        if item["id"] in hidden:
-            pending_points += item["points"]  # its worth, not max_score: that would tell an inconclusive one apart
-            items.append({k: item[k] for k in ("id", "part", "kind", "question", "prediction", "points")}
-                         | {"score": None, "max_score": item["points"], "verdict": "pending", "expected": "",
-                            "measured": "", "evidence": None, "tolerances": {}, "backends": {},
-                            "feedback": f"withheld: {hidden[item['id']]}"})
-        else:
-            total, shown_max = total + item["score"], shown_max + item["max_score"]
-            items.append(item)
-    names = [i["id"] for i in items if i["id"] in hidden]
-    max_total = shown_max + pending_points
-    note = (f"{pending_points:g} of {max_total:g} points pending ({', '.join(names)}): "
-            + "; ".join(sorted(set(hidden.values()))))
-    return {**report, "items": items, "total": round(total, 6), "max_total": max_total, "pending": note}
+def grant_extension(*, session: Session, assignment: Assignment, student_name: str, due_at: datetime,
+                    hard_close_at: datetime, user: User) -> Extension:
+    """Give one student their own due date and hard close (replaces an earlier one); Invalid for an unknown student.
+    Commits."""
+    student = session.scalar(select(User).where(User.course_id == assignment.course_id, User.name == student_name,
+                                                User.role == Role.STUDENT))
+    if student is None:
+        raise Invalid("unknown student", [{"field": "student", "rule": f"no student {student_name!r} in this course"}])
+    ext = session.scalar(select(Extension).where(Extension.assignment_id == assignment.id,
+                                                 Extension.student_id == student.id))
+    if ext is None:
+        ext = Extension(assignment_id=assignment.id, student_id=student.id)
+        session.add(ext)
+    ext.due_at, ext.hard_close_at, ext.granted_by_id = due_at, hard_close_at, user.id
+    ext.granted_at = utcnow()
+    session.commit()
+    return ext

@@ -1,4 +1,4 @@
-"""grader.report on real Genesis results: the HTML report and text summary carry the verdict, every condition and
+"""grader.check_report on real Genesis results: the HTML report and text summary carry the verdict, every condition and
 its evidence, the metric tables and figures, and never let a student-supplied name through unescaped."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from grader import report
+from grader import check_report as report
 from worker import figures
 from rubric import CaseResult, case_metrics, get_case
 from tests.factories import heavy_imports
@@ -154,4 +154,4 @@ def test_missing_figure_is_stated(tmp_path, measured):
 
 
 def test_figures_and_report_never_import_genesis_or_torch():
-    assert heavy_imports(["worker.figures", "grader.report"]) == []
+    assert heavy_imports(["worker.figures", "grader.check_report"]) == []

@@ -9,7 +9,8 @@ import re
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from grader import crud
+from grader.services import accounts
+from grader.services.errors import Invalid
 from grader.models import Course, User
 
 COLUMNS = ["student_id", "name", "email"]
@@ -55,9 +56,9 @@ def import_roster(*, session: Session, course: Course, rows: list[tuple[str, str
         user = session.scalar(select(User).where(User.course_id == course.id, User.name == sid))
         created = user is None
         if created:
-            user = crud.get_or_create_user(session=session, course=course, name=sid, role="student")
+            user = accounts.get_or_create_user(session=session, course=course, name=sid, role="student")
         user.full_name, user.email = name, email
-        token = crud.create_token(session=session, user=user) if created else None
+        token = accounts.create_token(session=session, user=user) if created else None
         out.append({"student": sid, "name": name, "email": email, "created": created, "token": token})
     return out
 
@@ -67,3 +68,15 @@ def role_conflicts(*, session: Session, course: Course, rows: list[tuple[str, st
     staff = set(session.scalars(select(User.name).where(User.course_id == course.id, User.role != "student")))
     return [{"field": f"csv.student_id {sid}", "rule": f"{sid!r} is on the course staff, not a student"}
             for sid, _, _ in rows if sid in staff]
+
+
+def import_csv(*, session: Session, course: Course, text: str) -> list[dict]:
+    """Import a roster CSV (student_id,name,email) into the course, all rows or none (Invalid naming each bad row's
+    field and rule); new students get a token, shown only in the answer. Commits."""
+    rows, problems = parse_roster(text)
+    problems = problems or role_conflicts(session=session, course=course, rows=rows)
+    if problems:
+        raise Invalid("invalid roster", problems)
+    entries = import_roster(session=session, course=course, rows=rows)
+    session.commit()
+    return entries

@@ -15,6 +15,7 @@ from pydantic import BaseModel
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from grader.core import grading
 from grader.core.lab_check import lab_check
 from grader.core.lifecycle import stored_result
 from grader.core.rubrics import course_version, get_version
@@ -110,7 +111,7 @@ def _why(item_id: str, old_rubric, new_rubric, new_item) -> str:
 def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric):
     """(entry, new GradeReport or None) for one submission, from its stored measurements only."""
     import rubric
-    from rubric.governance import regrade_preview
+    from rubric.governance import report_changes
 
     entry = dict(submission_id=submission.id, student=submission.student.name, old_version=grade.rubric_version,
                  new_version=new_rubric.version, old_total=grade.total, new_total=None, max_total=None,
@@ -127,8 +128,8 @@ def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric):
         if missing:
             return RegradeEntry(**entry, skipped=f"v{new_rubric.version} needs cases never measured for this "
                                                  f"submission: {', '.join(missing)}"), None
+        new = grading.score(submission, new_rubric)
         results = {run.name: stored_result(run) for run in submission.case_runs}
-        new = rubric.grade_sheet(sheet, results, new_rubric)
         folder = settings.figures_dir(submission.id)
         figures = sorted(folder.glob("*.png")) if folder.is_dir() else []
         reused = {run.name: run.reused_from_id for run in submission.case_runs if run.reused_from_id}
@@ -138,7 +139,7 @@ def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric):
     except Exception as exc:  # one submission that cannot be regraded must not hide the others
         return RegradeEntry(**entry, skipped=f"regrading failed: {type(exc).__name__}: {exc}"), None
     old = rubric.GradeReport.model_validate(grade.report)
-    row = regrade_preview({"s": old}, {"s": new}).rows[0]
+    row = report_changes({"s": old}, {"s": new}).rows[0]
     new_items = {i.id: i for i in new.items}
     entry.update(new_total=new.total, max_total=new.max_total, changed_items=[
         ItemDiff(**change.model_dump(), why=_why(change.id, old_rubric, new_rubric, new_items.get(change.id)))
@@ -183,18 +184,14 @@ def commit_regrade(session: Session, *, course: Course, lesson: str, version: st
                                for e in preview.entries if e.skipped])
     session.add(regrade)
     session.flush()
-    graded = {s.id: g for s, g in _graded(session, course, lesson)}
+    submissions = {s.id: s for s, _ in _graded(session, course, lesson)}
     for entry, report in results:
         if report is None:
             continue
-        old = graded[entry.submission_id]
-        old.superseded_at = now
-        session.flush()  # the old grade stops being current before the new one becomes current
-        session.add(Grade(submission_id=entry.submission_id, rubric_lesson=new_rubric.lesson,
-                          rubric_version=new_rubric.version, rubric_hash=new_rubric.content_hash, total=report.total,
-                          max_total=report.max_total, report=report.model_dump(mode="json"),
-                          execution_s=preview.elapsed_s / max(len(results), 1), created_at=now, regrade_id=regrade.id,
-                          completed_at=now))  # its lab check was evaluated again on the figures already drawn
+        # its lab check was evaluated again on the figures already drawn: the new grade is complete
+        grading.store_grade(session=session, submission=submissions[entry.submission_id], book=new_rubric,
+                            report=report, execution_s=preview.elapsed_s / max(len(results), 1), complete=True,
+                            regrade=regrade, now=now)
         regrade.regraded += 1
     session.commit()
     return regrade, preview

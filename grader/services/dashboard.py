@@ -12,17 +12,22 @@ from __future__ import annotations
 import json
 import statistics
 from collections import Counter
-from datetime import datetime, timedelta
+from datetime import datetime
 from typing import Any, Literal
 
 from pydantic import BaseModel
-from sqlalchemy import null, select
+from sqlalchemy import select
 from sqlalchemy.orm import Session, selectinload
 
+from grader.core import lifecycle
+from grader.core.states import Role
+from grader.services.access import MAX_ID, require_instructor
+from grader.services.errors import Conflict, NotFound
+from grader.services.sending import Sender
 from grader.core.rubrics import current_grade
-from grader.models import CaseRun, Course, Event, Grade, Submission, User, utcnow
+from grader.models import CaseRun, Course, Grade, Submission, User, utcnow
 from grader.schemas import CountedGradePublic, UtcDateTime
-from grader.settings import settings
+from grader.core.states import CaseRunState, SubmissionState
 
 
 class RosterRow(BaseModel):
@@ -101,7 +106,7 @@ class BackendSpread(BaseModel):
 
 
 class AssignmentGrades(BaseModel):
-    """One assignment of the course with each student's counted grade (grader.assignments.counted_grades)."""
+    """One assignment of the course with each student's counted grade (grader.services.assignments.counted_grades)."""
 
     id: int
     title: str
@@ -148,85 +153,38 @@ def latest_graded(session: Session, course: Course) -> list[tuple[Submission, Gr
 
 # --- problems and the resend action --------------------------------------------------------------------------------
 
-def _stuck(run: CaseRun, now: datetime) -> str | None:
-    """Why a run that is not finished looks stuck, or None: running past its lease, queued past the queue lease."""
-    if run.status == "running" and run.lease_until is not None and run.lease_until < now:
-        return f"running past its lease (since {run.lease_until:%H:%M:%S} UTC) on {run.worker or 'an unknown worker'}"
-    if run.status == "queued" and run.queued_at < now - timedelta(seconds=settings.queue_lease_s):
-        return f"queued for more than {settings.queue_lease_s:.0f} s"
-    return None
-
-
 def _not_resendable(run: CaseRun, submission: Submission, has_grade: bool, now: datetime) -> str | None:
     """Why an instructor may not re-send this run now, or None when they may."""
-    if run.status != "failed" and _stuck(run, now) is None:
+    if run.status != CaseRunState.FAILED and lifecycle.stuck_reason(run, now) is None:
         return f"case run {run.id} ({run.name}) is {run.status}, neither failed nor stuck"
-    if submission.status == "grading":
+    if submission.status == SubmissionState.GRADING:
         return f"submission {submission.id} is being graded; re-send once its grade is stored"
     return None
 
 
-class ResendRefused(Exception):
-    def __init__(self, status_code: int, detail: str):
-        super().__init__(detail)
-        self.status_code, self.detail = status_code, detail
-
-
-def resend_case_run(*, session: Session, case_run_id: int, user: User) -> CaseRun:
-    """An instructor of the run's course re-sends a failed or stuck case run: a new attempt on the same backend's
-    queue, as the reconciler does (grader.reconcile), recorded in an event that names who did it and keeps the old
-    error. A failed submission goes back to running. Raises ResendRefused (404, 403, 409) otherwise.
-
-    The caller commits nothing itself: this commits, then sends (so the message never precedes the state).
-    """
-    from grader import dispatch
-    from grader.api.deps import MAX_ID
-
+def resend_case_run(*, session: Session, case_run_id: int, user: User, sender: Sender) -> CaseRun:
+    """An instructor of the run's course re-sends a failed or stuck case run (grader.core.lifecycle.resend): a new
+    attempt on the same backend's queue, recorded in an event that names who did it and keeps the old error.
+    NotFound, Forbidden or Conflict otherwise. Commits, then sends (so the message never precedes the state)."""
     run = session.get(CaseRun, case_run_id) if 0 < case_run_id <= MAX_ID else None
-    if run is None or run.submission.course_id != user.course_id:
-        raise ResendRefused(404, f"case run {case_run_id} not found")
-    if user.role != "instructor":
-        if user.role == "student" and run.submission.student_id != user.id:
-            raise ResendRefused(404, f"case run {case_run_id} not found")
-        raise ResendRefused(403, f"only an instructor of the course may re-send a case run, not a {user.role}")
+    if run is None or run.submission.course_id != user.course_id or (
+            user.role == Role.STUDENT and run.submission.student_id != user.id):
+        raise NotFound(f"case run {case_run_id} not found")
+    require_instructor(user, action="re-send a case run")
     # Lock the submission, then the run (the order lifecycle._finish takes): a finisher and a resend serialize.
-    session.execute(select(Submission.id).where(Submission.id == run.submission_id).with_for_update())
+    lifecycle.lock_submission(session, run.submission_id)
     session.refresh(run, with_for_update=True)
     submission = run.submission
     session.refresh(submission)
     now = utcnow()
     why_not = _not_resendable(run, submission, current_grade(session, submission.id) is not None, now)
     if why_not:
-        raise ResendRefused(409, why_not)
-    was = run.status
-    previous = run.error if was == "failed" else _stuck(run, now)
-    old = f"attempt {run.attempt}, try {run.tries}" + (f", evidence in {run.artifact_dir}" if run.artifact_dir else "")
-    run.status, run.attempt, run.tries, run.queued_at = "queued", run.attempt + 1, 0, now
-    run.worker = run.worker_pid = run.lease_until = run.started_at = run.finished_at = None
-    run.result_status = run.error = run.stderr_tail = run.wall_s = run.actual_backend = None
-    run.artifact_dir = run.measurement_id = run.reused_from_id = None
-    run.provenance = run.metrics = null()  # SQL NULL, as before the first run (None would store JSON 'null')
-    session.add(Event(submission_id=submission.id, case_run_id=run.id, state="resent",
-                      detail=f"resent by {user.role} {user.name}: was {was} ({old}): {previous}; "
-                             f"attempt {run.attempt} on queue {run.backend}"))
-    grade = current_grade(session, submission.id)
-    if grade is not None:
-        # The grade that counted this run as not measured is kept in the history, superseded; the submission is
-        # graded again, under the course's version, once the re-sent run finishes (one current grade at a time).
-        grade.superseded_at = now
-        submission.status, submission.updated_at = "running", now
-        session.add(Event(submission_id=submission.id, state="running",
-                          detail=f"case run {run.name} resent by {user.name}: grade {grade.total:g} / "
-                                 f"{grade.max_total:g} (v{grade.rubric_version}) kept in the history, superseded; "
-                                 "graded again when the run finishes"))
-    elif submission.status == "failed":
-        previous_error = submission.error
-        submission.status, submission.error, submission.updated_at = "running", None, now
-        session.add(Event(submission_id=submission.id, state="running",
-                          detail=f"case run {run.name} resent by {user.name}; was failed: {previous_error}"))
+        session.rollback()
+        raise Conflict(why_not)
+    lifecycle.resend(session, run, by=f"{user.role} {user.name}")
     session.commit()
     try:
-        dispatch.send_case_run(run.id, run.attempt, run.backend)
+        sender.send_case_run(run.id, run.attempt, run.backend)
     except Exception:  # noqa: BLE001 - stored as queued: the reconciler re-sends it after the queue lease
         import logging
 
@@ -320,7 +278,7 @@ def backend_spread(session: Session, course: Course) -> BackendSpread:
     runs = session.execute(
         select(CaseRun.id, CaseRun.name, CaseRun.actual_backend, CaseRun.measurement_id, CaseRun.metrics)
         .join(Submission, CaseRun.submission_id == Submission.id)
-        .where(Submission.course_id == course.id, CaseRun.status == "done", CaseRun.metrics.is_not(None))
+        .where(Submission.course_id == course.id, CaseRun.status == CaseRunState.DONE, CaseRun.metrics.is_not(None))
         .order_by(CaseRun.id)).all()
     seen: set[tuple] = set()
     values: dict[tuple[str, str, str | None, str], list[float | None]] = {}
@@ -383,7 +341,7 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
     problems = []
     for s in submissions:
         for run in s.case_runs:
-            reason = run.error if run.status == "failed" else _stuck(run, now)
+            reason = run.error if run.status == CaseRunState.FAILED else lifecycle.stuck_reason(run, now)
             if reason:
                 why_not = _not_resendable(run, s, s.id in grades, now)
                 problems.append(RunProblem(case_run_id=run.id, submission_id=s.id, student=s.student.name,
@@ -411,7 +369,7 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
 
 def assignment_grades(session: Session, course: Course) -> list[AssignmentGrades]:
     """Every assignment of the course, by due date, with the counted grade of each student who has one."""
-    from grader.assignments import counted_grades, counted_public
+    from grader.services.assignments import counted_grades, counted_public
     from grader.models import Assignment
 
     rows = session.scalars(select(Assignment).where(Assignment.course_id == course.id)

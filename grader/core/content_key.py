@@ -1,4 +1,5 @@
-"""The content key that lets an identical measurement be reused instead of re-run.
+"""The content key that lets an identical measurement be reused instead of re-run (the API at admission, the worker
+before running a case).
 
 key = sha256 of the canonical JSON of:
   spec            the case spec without computed fields (sorted keys; backend, precision and seed are in it),
@@ -19,6 +20,8 @@ from functools import cache
 from importlib import metadata
 from typing import Any
 
+from rubric import results
+
 ENGINE_PACKAGES = ("genesis-world", "quadrants", "torch")
 
 
@@ -35,14 +38,12 @@ def engine_versions() -> dict[str, str]:
 
 
 def key_inputs(spec: dict[str, Any], *, backend: str, precision: str) -> dict[str, Any]:
-    from rubric.results import RUNNER_VERSION
-
     return {
         "spec": spec,
         "backend": backend,
         "precision": precision,
         "versions": engine_versions(),
-        "runner_version": RUNNER_VERSION,
+        "runner_version": results.RUNNER_VERSION,  # read at call time: a bump takes effect at once
     }
 
 

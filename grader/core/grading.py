@@ -1,0 +1,61 @@
+"""Grading a submission under a rubric version and storing the grade: the one place it happens.
+
+Used by the worker's grade task (worker.grading), a checkpoint sheet graded when it is submitted
+(grader.services.submissions) and a committed regrade (grader.services.regrade). Scoring reads only the stored
+measurements of the submission's case runs (`lifecycle.stored_result`); nothing here runs a case or draws.
+"""
+
+from __future__ import annotations
+
+import time
+from datetime import datetime
+
+from sqlalchemy.orm import Session
+
+import rubric
+from grader.core.lifecycle import stored_result, touch
+from grader.core.rubrics import current_grade
+from grader.core.states import SubmissionState
+from grader.models import Grade, Regrade, Submission, utcnow
+
+
+def score(submission: Submission, book) -> rubric.GradeReport:
+    """The submission's sheet scored under rubric version `book` on its stored measurements (raises on a bug)."""
+    sheet = rubric.parse_sheet(submission.sheet, submission.items)
+    results = {run.name: stored_result(run) for run in submission.case_runs}
+    return rubric.grade_sheet(sheet, results, book)
+
+
+def store_grade(*, session: Session, submission: Submission, book, report: rubric.GradeReport, execution_s: float,
+                complete: bool, regrade: Regrade | None = None, now: datetime | None = None,
+                detail: str | None = None) -> Grade:
+    """Store `report` as the submission's current grade (no commit). `complete`: its figures and lab check need no
+    drawing (a checkpoint set, or a regrade that evaluated the check again); otherwise `completed_at` stays empty
+    until worker.grading.complete_grade adds them. A regrade's grade supersedes the current one, kept in the history;
+    any other grading moves the submission to graded with an event (`detail`)."""
+    now = now or utcnow()
+    if regrade is not None:
+        current = current_grade(session, submission.id, report=False)
+        if current is not None:
+            current.superseded_at = now
+            session.flush()  # the old grade stops being current before the new one becomes current
+    grade = Grade(submission_id=submission.id, rubric_lesson=book.lesson, rubric_version=str(book.version),
+                  rubric_hash=book.content_hash, total=report.total, max_total=report.max_total,
+                  report=report.model_dump(mode="json"), execution_s=execution_s, created_at=now,
+                  regrade_id=regrade.id if regrade is not None else None, completed_at=now if complete else None)
+    session.add(grade)
+    if regrade is None:
+        submission.graded_at = now
+        touch(submission, SubmissionState.GRADED, detail or f"{report.total:g} / {report.max_total:g}",
+              session=session)
+    return grade
+
+
+def grade_and_store(*, session: Session, submission: Submission, book, complete: bool,
+                    detail: str | None = None) -> Grade:
+    """Score the submission under `book` and store the grade (no commit); see `score` and `store_grade`."""
+    started = time.perf_counter()
+    report = score(submission, book)
+    return store_grade(session=session, submission=submission, book=book, report=report,
+                       execution_s=time.perf_counter() - started, complete=complete,
+                       detail=detail and detail.format(total=report.total, max_total=report.max_total))

@@ -1,0 +1,43 @@
+"""How a page answers a refusal (installed by grader.main through grader.api.errors, the one place errors become
+answers): nobody signed in -> the sign-in form, coming back here after; a thing the caller may not see or act on
+(NotFound, Forbidden) -> the not-found page, revealing nothing; any other domain error -> the error page with the
+rule it broke. The API under /v1 answers the same errors as JSON."""
+
+from __future__ import annotations
+
+from urllib.parse import quote
+
+from fastapi import FastAPI, Request, status
+from fastapi.responses import HTMLResponse, RedirectResponse, Response
+
+from grader.core.db import new_session
+from grader.pages.auth import SignInRequired, page_user
+from grader.pages.templates import TEMPLATES
+from grader.services.errors import DomainError, Forbidden, NotFound
+
+
+def sign_in_redirect(request: Request) -> RedirectResponse:
+    target = request.url.path + (f"?{request.url.query}" if request.url.query else "")
+    return RedirectResponse(f"/sign-in?next={quote(target)}", status_code=status.HTTP_303_SEE_OTHER)
+
+
+def not_found(request: Request, user, what: str) -> HTMLResponse:
+    return TEMPLATES.TemplateResponse(request, "not_found.html", {"user": user, "what": what},
+                                      status_code=status.HTTP_404_NOT_FOUND)
+
+
+def page_error(request: Request, exc: DomainError, code: int) -> Response:
+    with new_session() as session:
+        user = page_user(request, session)
+        if isinstance(exc, NotFound | Forbidden):
+            return not_found(request, user, exc.detail.removesuffix(" not found"))
+        return TEMPLATES.TemplateResponse(request, "error.html", {"user": user, "error": exc, "code": code},
+                                          status_code=code)
+
+
+async def _sign_in(request: Request, _: SignInRequired) -> Response:
+    return sign_in_redirect(request)
+
+
+def install(app: FastAPI) -> None:
+    app.add_exception_handler(SignInRequired, _sign_in)

@@ -1,0 +1,19 @@
+"""The pages' Jinja2 environment (grader/templates) and its filters."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from fastapi.templating import Jinja2Templates
+
+from grader.core.timezones import local
+
+TEMPLATES = Jinja2Templates(directory=str(Path(__file__).resolve().parent.parent / "templates"))
+
+
+def local_time(at, user, seconds: bool = False) -> str:
+    """A stored time as the signed-in user's course shows it: in the course's time zone, named."""
+    return local(at, user.course.timezone if user else "UTC", seconds=seconds)
+
+
+TEMPLATES.env.filters["local"] = local_time

@@ -1,0 +1,56 @@
+"""The domain errors services raise; the web layer turns each into an answer in one place (grader.api.errors).
+
+    DomainError
+    ├── NotFound       no such thing, or the caller may not know it exists          (API 404, the not-found page)
+    ├── Forbidden      the caller's role may not do this in their course             (API 403)
+    ├── Conflict       the thing is not in a state that allows it now                (API 409)
+    └── Invalid        bad input: each error names the field and the rule            (API 422)
+        └── Refused    a submission its assignment does not take now; Retry-After where waiting helps (API 409/429)
+"""
+
+from __future__ import annotations
+
+
+class DomainError(Exception):
+    """A refusal a person should read: `detail` says what and why; `errors` name fields and rules where they apply."""
+
+    def __init__(self, detail: str, errors: list[dict[str, str]] | None = None):
+        super().__init__(detail)
+        self.detail, self.errors = detail, errors or []
+
+
+class NotFound(DomainError):
+    pass
+
+
+class Forbidden(DomainError):
+    pass
+
+
+class Conflict(DomainError):
+    pass
+
+
+class Invalid(DomainError):
+    def __init__(self, detail: str, errors: list[dict[str, str]] | None = None):
+        super().__init__(detail, errors)
+
+
+class Refused(Invalid):
+    """A submission the assignment does not take now; `field` and `rule` say why (with the time that applies).
+    `retry_after_s` is set when waiting helps (the hourly limit): the API answers 429 with Retry-After."""
+
+    def __init__(self, field: str, rule: str, retry_after_s: int | None = None):
+        super().__init__("submission refused", [{"field": field, "rule": rule}])
+        self.args = (rule,)
+        self.field, self.rule, self.retry_after_s = field, rule, retry_after_s
+
+
+def field_errors(lines: list[str], prefix: str = "") -> list[dict[str, str]]:
+    """'field.path: rule' lines (rubric.describe_errors) as [{field, rule}], each field under `prefix`."""
+    out = []
+    for line in lines:
+        field, sep, rule = line.partition(": ")
+        field, rule = (field, rule) if sep else ("", line)
+        out.append({"field": ".".join(p for p in (prefix, field) if p), "rule": rule})
+    return out

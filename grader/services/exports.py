@@ -1,0 +1,83 @@
+"""Grade exports for instructors: a course's grades as CSV, an assignment's counted grades as CSV, one submission as
+Gradescope results.json, and the evidence files a case run wrote. The API and the pages serve the same bytes."""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from grader.core.rubrics import current_grade
+from grader.models import Assignment, CaseRun, Course, Grade, Submission
+from grader.services import assignments
+from grader.services.errors import Conflict, NotFound
+from grader.services.visibility import visibility_of
+
+# What a case run writes and may be downloaded, with its media type. Nothing else is ever served from its folder.
+EVIDENCE = {"arrays.npz": "application/octet-stream", "provenance.json": "application/json",
+            "metrics.json": "application/json",
+            "spec.json": "application/json", "stdout.txt": "text/plain", "stderr.txt": "text/plain"}
+COUNTED_COLUMNS = ("student", "counted_score", "raw_score", "max_score", "penalty", "late_seconds", "attempt",
+                   "submission_id", "submitted_at_utc")
+
+
+def _report(grade: Grade):
+    from rubric.scoring import GradeReport
+
+    return GradeReport.model_validate(grade.report)
+
+
+def course_grades_csv(*, session: Session, course: Course, latest: bool = False) -> tuple[str, str]:
+    """(file name, CSV) of the course's current grades with each row's submission id and time (UTC): every graded
+    submission in submission order, or with `latest` each student's latest graded attempt."""
+    from rubric.exports import grades_csv
+
+    graded = session.execute(select(Submission, Grade).join(Grade, Grade.submission_id == Submission.id)
+                             .where(Submission.course_id == course.id, Grade.superseded_at.is_(None))
+                             .order_by(Submission.id)).all()
+    if latest:
+        graded = sorted({s.student_id: (s, g) for s, g in graded}.values(), key=lambda sg: sg[0].student.name)
+    text = grades_csv([(s.student.name, _report(g)) for s, g in graded],
+                      submissions=[(s.id, f"{s.created_at.isoformat()}+00:00") for s, _ in graded])
+    return f"{course.name}-{'latest' if latest else 'all'}-grades.csv", text
+
+
+def counted_grades_csv(*, session: Session, assignment: Assignment) -> tuple[str, str]:
+    """(file name, CSV) of the assignment's counted grades: student, counted score, raw score, penalty, attempt,
+    submission and when it was submitted (UTC)."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(COUNTED_COLUMNS)
+    for c in assignments.counted_grades(session=session, assignment=assignment):
+        r = assignments.counted_public(c)
+        writer.writerow([r.student, f"{r.counted_score:g}", f"{r.raw_score:g}", f"{r.max_score:g}", f"{r.penalty:g}",
+                         r.late_seconds, r.attempt, r.submission_id, r.submitted_at.isoformat()])
+    return f"{assignment.course.name}-assignment-{assignment.id}-grades.csv", out.getvalue()
+
+
+def gradescope(*, session: Session, submission: Submission) -> dict:
+    """Gradescope results.json of one graded submission; each item's visibility is its assignment's for that item
+    (immediate: visible, after_due: after_due_date, on_release: after_published). Conflict while not graded."""
+    from rubric.exports import gradescope_results
+
+    grade = current_grade(session, submission.id)
+    if grade is None:
+        raise Conflict(f"submission {submission.id} is {submission.status}, not graded")
+    report = _report(grade)
+    shown = ({i.id: assignments.GRADESCOPE_VISIBILITY[visibility_of(submission.assignment, i.id)]
+              for i in report.items} if submission.assignment is not None else {})
+    return gradescope_results(report, grade.execution_s, shown)
+
+
+def evidence_file(*, submission: Submission, name: str, filename: str) -> tuple[Path, str]:
+    """(path, media type) of one evidence file of the submission's case run `name`; NotFound otherwise."""
+    run: CaseRun | None = next((r for r in submission.case_runs if r.name == name), None)
+    if run is None or filename not in EVIDENCE or not run.artifact_dir:
+        raise NotFound(f"no file {filename!r} for case run {name!r}")
+    path = Path(run.artifact_dir) / filename
+    if not path.is_file():
+        raise NotFound(f"{filename} was not written by case run {name!r}")
+    return path, EVIDENCE[filename]

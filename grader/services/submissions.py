@@ -1,0 +1,124 @@
+"""Submissions: storing one with its case runs, taking one through its assignment's rules, listing what a user may
+read. The API's POST and the browser's submit both go through `submit`."""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from pydantic import ValidationError
+from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from grader.core import grading, lifecycle
+from grader.core.rubrics import course_rubric
+from grader.core.audit import spec_key
+from grader.core.states import CaseRunState, Role
+from grader.models import Assignment, CaseRun, Course, Event, Submission, User, utcnow
+from grader.services import assignments, sheets
+from grader.services.errors import Forbidden, Invalid, Refused, field_errors
+from grader.services.sending import Sender
+
+log = logging.getLogger(__name__)
+
+
+def create_submission(
+    *, session: Session, student: User, lesson: str, sheet: dict[str, Any], specs: list, force_rerun: bool
+) -> Submission:
+    """The submission and one queued CaseRun per spec, added to the session (commit before enqueueing)."""
+    submission = Submission(
+        course_id=student.course_id, student_id=student.id, lesson=lesson, sheet=sheet, force_rerun=force_rerun
+    )
+    session.add(submission)
+    session.flush()
+    session.add(Event(submission_id=submission.id, state="submitted", detail=f"{len(specs)} case runs"))
+    for spec in specs:
+        run = CaseRun(
+            submission_id=submission.id,
+            name=spec.name,
+            kind=spec.kind,
+            backend=spec.backend,
+            precision=spec.precision,
+            spec=spec.model_dump(mode="json", exclude_computed_fields=True),
+            spec_key=spec_key(spec.model_dump(mode="json", exclude_computed_fields=True)),
+        )
+        session.add(run)
+        session.flush()
+        session.add(Event(submission_id=submission.id, case_run_id=run.id, state="queued", detail=f"queue {run.backend}"))
+    return submission
+
+
+def visible_submissions(*, session: Session, user: User, course: Course | None = None):
+    """What user may list: a student their own, instructors and auditors their course's."""
+    query = select(Submission).order_by(Submission.id)
+    if user.role == Role.STUDENT:
+        return session.scalars(query.where(Submission.student_id == user.id)).all()
+    return session.scalars(query.where(Submission.course_id == (course or user.course).id)).all()
+
+
+def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id: int | None = None,
+           backend: str | None = None, force_rerun: bool = False, sender: Sender) -> Submission:
+    """Validate a sheet and its case configs, store the submission and its case runs in one transaction, then send
+    every case still to run (`sender`). Raises Forbidden (the role), Invalid (the sheet, the assignment) or Refused
+    (the assignment's rules), and nothing is stored then.
+
+    A case with a stored measurement is finished at once; with none left to run only the grade task is sent, or a
+    checkpoint sheet (the lesson's own cases only, the same for every student) is graded in this call. While one of
+    its cases was never measured it is queued like any other, so no student loses a point to a gap."""
+    if user.role not in (Role.STUDENT, Role.INSTRUCTOR):
+        raise Forbidden(f"role {user.role} may not submit")
+    assignment = None
+    attempt = late_seconds = None
+    if assignment_id is not None:
+        assignment = session.get(Assignment, assignment_id)
+        if assignment is None or assignment.course_id != user.course_id:
+            raise Invalid("unknown assignment", [{"field": "assignment_id",
+                                                  "rule": f"no assignment {assignment_id} in your course"}])
+        # the time and attempt rules come before the sheet: a closed assignment takes nothing
+        attempt, late_seconds = assignments.admit(session=session, assignment=assignment, student=user, now=utcnow())
+    try:
+        parsed = sheets.parse_sheet(sheet, assignment.items if assignment else "sheet")
+        specs = sheets.cases_to_run(parsed)
+    except ValidationError as exc:
+        from rubric import describe_errors
+
+        raise Invalid("invalid sheet", field_errors(describe_errors(exc), prefix="sheet")) from None
+    if backend is not None:
+        from rubric import with_backend
+
+        specs = [with_backend(spec, backend=backend) for spec in specs]
+    if assignment is not None and parsed.lesson != assignment.lesson:
+        raise Invalid("invalid sheet", [{"field": "sheet.lesson",
+                                         "rule": f"assignment {assignment.id} is for lesson {assignment.lesson}"}])
+    submission = create_submission(session=session, student=user, lesson=parsed.lesson, sheet=sheet, specs=specs,
+                                   force_rerun=force_rerun)
+    if assignment is not None:
+        submission.assignment_id, submission.attempt, submission.late_seconds = assignment.id, attempt, late_seconds
+    try:
+        session.flush()  # a concurrent submission that took this attempt number fails here, before any grading
+    except IntegrityError:
+        session.rollback()
+        raise Refused("assignment_id", f"attempt {attempt} of assignment {assignment.id} was just taken by another "
+                                       f"submission; submit again") from None
+    to_grade = lifecycle.reuse_at_admission(session=session, submission=submission)
+    if to_grade and sheets.checkpoints_only(parsed):
+        book = course_rubric(session, submission.course_id, submission.lesson)
+        grading.grade_and_store(session=session, submission=submission, book=book, complete=True, detail=(
+            "{total:g} / {max_total:g} (no case run: graded at once on the lesson's cases as already measured)"))
+        to_grade = False
+    session.commit()  # nothing is sent before the submission and all its case runs are durable
+    if to_grade:
+        try:
+            sender.send_grade(submission.id)
+        except Exception:  # stored as 'grading': the reconciler re-sends its grade task after the lease
+            log.exception("could not enqueue the grading of submission %s; the reconciler will re-send it",
+                          submission.id)
+    for run in submission.case_runs:
+        if run.status != CaseRunState.QUEUED:  # reused when submitted
+            continue
+        try:
+            sender.send_case_run(run.id, run.attempt, run.backend)
+        except Exception:  # stored and queued in the database: the reconciler re-sends it
+            log.exception("could not enqueue case run %s; the reconciler will re-send it", run.id)
+    return submission

@@ -1,0 +1,167 @@
+"""What a user may see of a grade: the one rule, used by the API, the pages and every export.
+
+Staff (instructors and auditors of the course) see everything. A student sees an item's score and feedback at once
+(immediate), from the due date that applies to them (after_due: their extension's where granted) or once the
+assignment is released (on_release). A withheld item keeps its question, points and the student's own prediction;
+its score, verdict, evidence and feedback are not shown, and the totals count the shown items only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from datetime import datetime
+
+from sqlalchemy.orm import Session
+
+from grader.core.rubrics import current_grade
+from grader.core.states import STAFF, CountedAttempt, Visibility
+from grader.core.timezones import iso
+from grader.models import Assignment, Grade, Submission, User, utcnow
+from grader.services.assignments import counted_for, dates_for, item_ids, penalty_fraction
+
+
+def visibility_of(assignment: Assignment, item_id: str) -> str:
+    """The item's own visibility where the assignment sets one, else the assignment's."""
+    return (assignment.item_visibility or {}).get(item_id, assignment.visibility)
+
+
+def withheld_items(*, session: Session, submission: Submission, user: User, now: datetime) -> dict[str, str]:
+    """{item id: why `user` may not see its score and feedback yet}; empty for staff of the submission's course."""
+    assignment = submission.assignment
+    if assignment is None or (user.role in STAFF and user.course_id == submission.course_id):
+        return {}
+    why: dict[str, str | None] = {Visibility.IMMEDIATE: None}
+    ids = item_ids(assignment.lesson, assignment.items)
+    kinds = {visibility_of(assignment, i) for i in ids}
+    if Visibility.AFTER_DUE in kinds:
+        due = dates_for(session=session, assignment=assignment, student=submission.student).due_at
+        why[Visibility.AFTER_DUE] = None if now >= due else (
+            f"shown after the due date, {iso(due, assignment.course.timezone)}")
+    if Visibility.ON_RELEASE in kinds:
+        why[Visibility.ON_RELEASE] = None if assignment.released_at is not None else (
+            f"shown once assignment {assignment.id} is released by an instructor")
+    hidden = {i: why[visibility_of(assignment, i)] for i in ids}
+    return {i: reason for i, reason in hidden.items() if reason}
+
+
+def shown_report(report: dict, hidden: dict[str, str]) -> dict:
+    """The stored report as a student may see it: each withheld item keeps its question, points and the student's
+    own prediction, but its score is None and its feedback says when it will be shown; the total counts the shown
+    items only and `pending` says which points are still to come. Nothing is regraded on release."""
+    if not hidden:
+        return report
+    items, total, shown_max, pending_points = [], 0.0, 0.0, 0.0
+    for item in report.get("items", []):
+        if item["id"] in hidden:
+            pending_points += item["points"]  # its worth, not max_score: that would tell an inconclusive one apart
+            items.append({k: item[k] for k in ("id", "part", "kind", "question", "prediction", "points")}
+                         | {"score": None, "max_score": item["points"], "verdict": "pending", "expected": "",
+                            "measured": "", "evidence": None, "tolerances": {}, "backends": {},
+                            "feedback": f"withheld: {hidden[item['id']]}"})
+        else:
+            total, shown_max = total + item["score"], shown_max + item["max_score"]
+            items.append(item)
+    names = [i["id"] for i in items if i["id"] in hidden]
+    max_total = shown_max + pending_points
+    note = (f"{pending_points:g} of {max_total:g} points pending ({', '.join(names)}): "
+            + "; ".join(sorted(set(hidden.values()))))
+    return {**report, "items": items, "total": round(total, 6), "max_total": max_total, "pending": note}
+
+
+@dataclass(frozen=True)
+class GradeView:
+    """The current grade of a submission as one user may see it now.
+
+    `stored` is the grade row (None before grading); read the scores through this view, never through `stored`,
+    unless `hidden` is empty. `nothing_shown` says why no score at all may be shown (every item withheld)."""
+
+    submission: Submission
+    stored: Grade | None
+    hidden: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def item_count(self) -> int:
+        assignment = self.submission.assignment
+        return len(item_ids(assignment.lesson, assignment.items)) if assignment is not None else 0
+
+    @property
+    def nothing_shown(self) -> str | None:
+        if not self.hidden or len(self.hidden) < self.item_count:
+            return None
+        return "scores and feedback are " + " and ".join(sorted(set(self.hidden.values())))
+
+    @property
+    def some_withheld(self) -> str | None:
+        """Why some item is withheld (the grade history's totals would tell it), or None."""
+        return ("some items' scores and feedback are " + " and ".join(sorted(set(self.hidden.values())))
+                if self.hidden else None)
+
+    @property
+    def shown(self) -> bool:
+        """Whether there is a grade and any of it may be shown."""
+        return self.stored is not None and self.nothing_shown is None
+
+    @property
+    def report(self) -> dict | None:
+        """The report as this user may see it (the stored one where nothing is withheld)."""
+        if not self.shown:
+            return None
+        return shown_report(self.stored.report, self.hidden) if self.hidden else self.stored.report
+
+    @property
+    def total(self) -> float | None:
+        if not self.shown:
+            return None
+        return self.report["total"] if self.hidden else self.stored.total
+
+    @property
+    def max_total(self) -> float | None:
+        if not self.shown:
+            return None
+        return self.report["max_total"] if self.hidden else self.stored.max_total
+
+    @property
+    def pending(self) -> str | None:
+        return self.report.get("pending") if self.shown and self.hidden else None
+
+    # The stored grade's provenance, never withheld: which rubric, and whether its figures are drawn.
+    @property
+    def rubric_lesson(self) -> str | None:
+        return self.stored.rubric_lesson if self.stored is not None else None
+
+    @property
+    def rubric_version(self) -> str | None:
+        return self.stored.rubric_version if self.stored is not None else None
+
+    @property
+    def completed_at(self) -> datetime | None:
+        return self.stored.completed_at if self.stored is not None else None
+
+
+def grade_view(*, session: Session, submission: Submission, user: User, now: datetime | None = None,
+               report: bool = True) -> GradeView:
+    """The current grade of `submission` as `user` may see it at `now` (default: now).
+
+    `report=False` defers the grade's report (the largest JSON) until a withheld item needs it masked."""
+    hidden = withheld_items(session=session, submission=submission, user=user, now=now or utcnow())
+    return GradeView(submission=submission, stored=current_grade(session, submission.id, report=report),
+                     hidden=hidden)
+
+
+def attempt_standing(session: Session, submission: Submission, user: User, view: GradeView | None = None) -> dict:
+    """What `user` may see of an assignment attempt's standing: the late penalty (it follows from the lateness alone:
+    never withheld), the raw and counted score (only with the whole grade shown) and whether it is the attempt that
+    counts (withheld under "best" while any item is: it would tell a hidden score)."""
+    out: dict = {"penalty": None, "raw_score": None, "counted_score": None, "counts": None}
+    assignment = submission.assignment
+    if assignment is None:
+        return out
+    view = view or grade_view(session=session, submission=submission, user=user, report=False)
+    out["penalty"] = penalty_fraction(assignment, submission.late_seconds or 0)
+    if view.stored is not None:
+        mine, counting_id = counted_for(session=session, submission=submission)
+        if mine is not None and not view.hidden:
+            out |= {"raw_score": mine.raw, "counted_score": mine.counted}
+        if not view.hidden or assignment.counted_attempt == CountedAttempt.LATEST:
+            out["counts"] = counting_id == submission.id
+    return out

@@ -1,0 +1,55 @@
+"""The layers of ARCHITECTURE.md hold: import-linter's contracts (pyproject.toml) pass on the tree, and fail when a
+page imports an API route module or the neutral core imports the worker."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.factories import ROOT
+
+LINT = [sys.executable, "-c", "import sys; from importlinter.cli import lint_imports_command; "
+        "sys.exit(lint_imports_command())", "--no-cache"]
+
+
+def _lint(tree: Path, contract: str | None = None) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": str(tree)}
+    only = ["--contract", contract] if contract else []
+    return subprocess.run([*LINT, "--config", str(tree / "pyproject.toml"), *only], cwd=tree, env=env,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_every_import_contract_is_kept():
+    result = _lint(ROOT)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "0 broken" in result.stdout and "7 kept" in result.stdout, result.stdout
+
+
+@pytest.fixture
+def tree_copy(tmp_path):
+    for name in ("grader", "worker", "rubric"):
+        shutil.copytree(ROOT / name, tmp_path / name, ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(ROOT / "pyproject.toml", tmp_path / "pyproject.toml")
+    return tmp_path
+
+
+@pytest.mark.parametrize("module, line, contract, offender", [
+    ("grader/pages/templates.py", "from grader.api.routes import audit as _audit", "pages-use-services",
+     "grader.pages.templates -> grader.api.routes.audit"),
+    ("grader/core/lifecycle.py", "from worker import case_run as _case_run", "core-neutral",
+     "grader.core.lifecycle -> worker.case_run"),
+    ("grader/services/visibility.py", "from fastapi import HTTPException as _http", "services-below-web",
+     "grader.services.visibility -> fastapi"),
+    ("rubric/guards.py", "import sqlalchemy as _sql", "rubric-pure", "rubric.guards -> sqlalchemy"),
+])
+def test_a_forbidden_import_breaks_its_contract(tree_copy, module, line, contract, offender):
+    assert _lint(tree_copy).returncode == 0  # the copy itself keeps every contract
+    path = tree_copy / module
+    path.write_text(path.read_text() + f"\n{line}  # a forbidden import, added by this test\n")
+    result = _lint(tree_copy, contract)
+    assert result.returncode != 0 and "BROKEN" in result.stdout and offender in result.stdout, result.stdout
