@@ -1,6 +1,7 @@
 """Schemathesis over the app's own OpenAPI, in-process (ASGI), as a student and as an instructor: every operation,
 every check (schemathesis.toml), a bounded and reproducible number of examples. Any 5xx, undocumented status or
-content type, or body that breaks its documented schema fails the test.
+content type, or body that breaks its documented schema fails the test; and one hand-written valid request per GET
+operation (plus the everyday writes), from a caller allowed to make it, must answer 2xx.
 
 The database holds the course's people and one submission of alice's, so ids and names the generator tries can
 reach real rows (404 otherwise). Enqueueing is recorded by the `api` fixture, never sent.
@@ -14,7 +15,7 @@ import pytest
 import schemathesis
 from hypothesis import HealthCheck, settings
 
-from tests.factories import ROOT, reference_sheet
+from tests.factories import ROOT, audit_entry_for, reference_sheet
 
 EXAMPLES = 200  # per operation and caller; with the coverage phase, about 2 minutes on the 2-core machine
 REQUESTS: Counter = Counter()
@@ -63,3 +64,129 @@ def report_request_counts():
         by_class[f"{cls}xx"] += n
     print(f"\nschemathesis: {sum(REQUESTS.values())} requests over {len(operations)} operations, "
           f"by status class {dict(sorted(by_class.items()))}")
+
+
+# --- valid requests succeed ------------------------------------------------------------------------------------------
+# The fuzzing above only proves nothing breaks: a route answering 404 or 409 to every request would pass it. Here
+# each GET operation (and the writes an instructor or student makes every day) gets one hand-written valid request
+# from a caller allowed to make it, against rows that exist, and must answer 2xx, its body on its documented schema.
+
+PNG = (b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\x00\x00\x00\x01\x00\x00\x00\x01\x08\x02\x00\x00\x00\x90wS\xde\x00\x00"
+       b"\x00\x0cIDATx\x9cc\xf8\xff\xff?\x00\x05\xfe\x02\xfe\xa75\x81\x84\x00\x00\x00\x00IEND\xaeB`\x82")
+
+
+@pytest.fixture
+def world(seeded, tmp_path):
+    """`seeded` plus: alice's submission graded (a stored grade, one lab figure, one case run's evidence files), an
+    assignment of the course with an extension of hers, and an audit entry; the ids every valid request names."""
+    from grader.core.db import new_session
+    from grader.models import CaseRun, Grade, Submission
+    from grader.settings import settings as grader_settings
+    from rubric.scoring import GradeReport
+
+    api = seeded
+    (mine,) = api.client.get("/v1/submissions", headers=api.as_("alice")).json()
+    sid = mine["id"]
+    report = GradeReport(lesson="L03", student="alice", rubric_version="2", rubric_hash="x", engine_version="1.3.3",
+                         total=0, max_total=0, complete=True, items=[], config_findings=[])
+    evidence = tmp_path / "evidence"
+    evidence.mkdir()
+    (evidence / "stdout.txt").write_text("N1 ran\n")
+    (evidence / "provenance.json").write_text('{"requested_backend": "cpu"}')  # a JSON file is documented as JSON
+    figures = grader_settings.figures_dir(sid)
+    figures.mkdir(parents=True)
+    (figures / "lab.png").write_bytes(PNG)
+    with new_session() as session:
+        run = session.query(CaseRun).filter_by(submission_id=sid, name="N1").one()
+        run.status, run.result_status, run.actual_backend, run.artifact_dir = "done", "ok", "cpu", str(evidence)
+        session.add(Grade(submission_id=sid, rubric_lesson="L03", rubric_version="2", rubric_hash="x", total=0,
+                          max_total=0, report=report.model_dump(mode="json")))
+        session.get(Submission, sid).status = "graded"
+        entry = audit_entry_for(run)
+        session.add(entry)
+        session.commit()
+        ids = {"submission_id": sid, "entry_id": entry.id, "case_run_id": run.id}
+    created = api.client.post("/v1/courses/l03/assignments", headers=api.as_("prof"), json={
+        "title": "Checkpoints", "items": "checkpoints", "open_at": "2020-01-01T00:00:00Z",
+        "due_at": "2099-01-01T00:00:00Z", "hard_close_at": "2099-01-02T00:00:00Z"})
+    assert created.status_code == 201, created.text
+    ids["assignment_id"] = created.json()["id"]
+    return api, ids
+
+
+# (method, path, caller, path parameters beyond the world's ids, query). Student-facing reads as alice (her own
+# submission), staff reads as the instructor.
+VALID_GETS = [
+    ("/v1/health", "alice", {}, {}),
+    ("/v1/submissions", "alice", {}, {}),
+    ("/v1/submissions/{submission_id}", "alice", {}, {}),
+    ("/v1/submissions/{submission_id}/grade", "alice", {}, {}),
+    ("/v1/submissions/{submission_id}/grades", "alice", {}, {}),
+    ("/v1/submissions/{submission_id}/case-runs", "alice", {}, {}),
+    ("/v1/submissions/{submission_id}/events", "alice", {}, {}),
+    ("/v1/submissions/{submission_id}/case-runs/{name}/files/{filename}", "alice",
+     {"name": "N1", "filename": "stdout.txt"}, {}),
+    ("/v1/submissions/{submission_id}/case-runs/{name}/files/{filename}", "alice",
+     {"name": "N1", "filename": "provenance.json"}, {}),
+    ("/v1/submissions/{submission_id}/figures", "alice", {}, {}),
+    ("/v1/submissions/{submission_id}/figures/{filename}", "alice", {"filename": "lab.png"}, {}),
+    ("/v1/submissions/{submission_id}/gradescope.json", "prof", {}, {}),
+    ("/v1/courses/{course}", "alice", {"course": "l03"}, {}),
+    ("/v1/courses/{course}/submissions", "prof", {"course": "l03"}, {}),
+    ("/v1/courses/{course}/dashboard", "prof", {"course": "l03"}, {}),
+    ("/v1/courses/{course}/assignments", "alice", {"course": "l03"}, {}),
+    ("/v1/courses/{course}/grades.csv", "prof", {"course": "l03"}, {"latest": True}),
+    ("/v1/courses/{course}/regrade-preview", "prof", {"course": "l03"}, {"version": "2", "lesson": "L03"}),
+    ("/v1/courses/{course}/regrades", "prof", {"course": "l03"}, {}),
+    ("/v1/assignments/{assignment_id}", "alice", {}, {}),
+    ("/v1/assignments/{assignment_id}/grades", "prof", {}, {}),
+    ("/v1/assignments/{assignment_id}/grades.csv", "prof", {}, {}),
+    ("/v1/rubrics/{lesson}/versions", "prof", {"lesson": "L03"}, {}),
+    ("/v1/audit/entries", "prof", {}, {"lesson": "L03"}),
+    ("/v1/audit/entries.csv", "prof", {}, {}),
+    ("/v1/audit/entries/{entry_id}", "prof", {}, {}),
+]
+# Writes, in this order (the release and the extension name the world's assignment).
+VALID_WRITES = [
+    ("POST", "/v1/submissions", "alice", {}, {"sheet": reference_sheet()}),
+    ("POST", "/v1/courses/{course}/assignments", "prof", {"course": "l03"}, {
+        "title": "Lab 3", "items": "sheet", "open_at": "2020-01-01T00:00:00Z", "due_at": "2099-01-01T00:00:00Z",
+        "hard_close_at": "2099-01-02T00:00:00Z"}),
+    ("POST", "/v1/assignments/{assignment_id}/extensions", "prof", {}, {
+        "student": "alice", "due_at": "2099-01-05T00:00:00Z", "hard_close_at": "2099-01-06T00:00:00Z"}),
+    ("POST", "/v1/assignments/{assignment_id}/release", "prof", {}, None),
+    ("PATCH", "/v1/courses/{course}", "prof", {"course": "l03"}, {"timezone": "Europe/Berlin"}),
+    ("POST", "/v1/courses/{course}/roster", "prof", {"course": "l03"},
+     {"csv": "student_id,name,email\ncarol,Carol C,carol@example.org\n"}),
+]
+
+
+def _call(api, ids: dict, method: str, path: str, caller: str, params: dict, **parts):
+    """One request built from the operation's own schema (so the request itself is on it), sent and validated."""
+    names = {p["name"] for p in schema.raw_schema["paths"][path][method.lower()].get("parameters", [])
+             if p["in"] == "path"}
+    path_parameters = {k: v for k, v in ids.items() if k in names} | params
+    case = schema[path][method].Case(path_parameters=path_parameters, **parts)
+    return case.call_and_validate(headers=api.as_(caller))
+
+
+def test_every_get_operation_has_a_valid_request_below():
+    documented = {path for path, ops in schema.raw_schema["paths"].items() if "get" in ops}
+    assert documented == {path for path, *_ in VALID_GETS}
+
+
+def test_valid_requests_succeed(world):
+    api, ids = world
+    refused = []
+    for path, caller, params, query in VALID_GETS:
+        response = _call(api, ids, "GET", path, caller, params, query=query)
+        REQUESTS[(caller, f"GET {path}", response.status_code // 100)] += 1
+        if not 200 <= response.status_code < 300:
+            refused.append(f"GET {path} as {caller}: {response.status_code} {response.text[:200]}")
+    for method, path, caller, params, body in VALID_WRITES:
+        parts = {} if body is None else {"body": body, "media_type": "application/json"}
+        response = _call(api, ids, method, path, caller, params, **parts)
+        REQUESTS[(caller, f"{method} {path}", response.status_code // 100)] += 1
+        if not 200 <= response.status_code < 300:
+            refused.append(f"{method} {path} as {caller}: {response.status_code} {response.text[:200]}")
+    assert not refused, "valid requests refused:\n" + "\n".join(refused)
