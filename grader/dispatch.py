@@ -5,13 +5,13 @@ from __future__ import annotations
 from grader.core.lifecycle import NEW_PRIORITY, REQUEUED_PRIORITY, RERUN_PRIORITY
 
 
-def send_case_run(case_run_id: int, attempt: int, backend: str, *, priority: int = NEW_PRIORITY) -> None:
+def send_case_run(case_run_id: int, delivery: int, backend: str, *, priority: int = NEW_PRIORITY) -> None:
     """Enqueue a case run on the queue of its requested backend: cpu, rocm or cuda, never another."""
     from worker.celery_app import BACKEND_QUEUES, RUN_TASK, app
 
     if backend not in BACKEND_QUEUES:
         raise ValueError(f"no queue for backend {backend!r}")
-    app.send_task(RUN_TASK, args=[case_run_id, attempt], queue=backend, priority=priority)
+    app.send_task(RUN_TASK, args=[case_run_id, delivery], queue=backend, priority=priority)
 
 
 def send_grade(submission_id: int) -> None:
@@ -22,9 +22,9 @@ def send_grade(submission_id: int) -> None:
 
 def resend(resend) -> None:
     """Enqueue what the reconciler marked (grader.reconcile.Resend)."""
-    for case_run_id, attempt, backend in resend.case_runs:
+    for case_run_id, delivery, backend in resend.case_runs:
         rerun = case_run_id in resend.were_running
-        send_case_run(case_run_id, attempt, backend, priority=RERUN_PRIORITY if rerun else REQUEUED_PRIORITY)
+        send_case_run(case_run_id, delivery, backend, priority=RERUN_PRIORITY if rerun else REQUEUED_PRIORITY)
     for submission_id in resend.gradings:
         send_grade(submission_id)
 
@@ -102,7 +102,7 @@ def broker_kept_marker() -> bool | None:
 
 
 def held_tasks(*, timeout_s: float = 2.0) -> tuple[dict[str, set[tuple[int, int]]], dict[str, int]] | None:
-    """Liveness as the broker sees it: per answering worker, the (case_run_id, attempt) of the case runs it is
+    """Liveness as the broker sees it: per answering worker, the (case_run_id, delivery) of the case runs it is
     running or holds prefetched; and the messages waiting per queue. None when not knowable (embedded broker, or the
     broker unreachable): the reconciler then falls back to leases."""
     from worker.celery_app import RUN_TASK, app

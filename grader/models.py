@@ -153,7 +153,7 @@ class Submission(Base):
 
 
 class CaseRun(Base):
-    """One case of one submission on one backend. `attempt` numbers deliveries: a stale message is dropped."""
+    """One case of one submission on one backend. `delivery` numbers its messages: a stale message is dropped."""
 
     __tablename__ = "case_runs"
     __table_args__ = (UniqueConstraint("submission_id", "name"),)
@@ -166,7 +166,7 @@ class CaseRun(Base):
     precision: Mapped[str] = mapped_column(String(4))
     spec: Mapped[dict[str, Any]]
     status: Mapped[str] = mapped_column(String(16), default="queued", index=True)
-    attempt: Mapped[int] = mapped_column(Integer, default=1)
+    delivery: Mapped[int] = mapped_column(Integer, default=1)
     tries: Mapped[int] = mapped_column(Integer, default=0)
     content_key: Mapped[str | None] = mapped_column(String(64), index=True)
     result_status: Mapped[str | None] = mapped_column(String(16))

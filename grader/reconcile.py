@@ -1,7 +1,7 @@
 """The reconciler: nothing stays lost. Re-sends case runs whose message or worker vanished, and stuck gradings.
 
 - running, but no live worker holds it (its worker was killed; Celery's remote control says which tasks each live
-  worker holds): back to queued with a new attempt number, re-sent, without waiting for the lease;
+  worker holds): back to queued with a new delivery number, re-sent, without waiting for the lease;
 - queued, but its queue is empty on the broker and no worker holds it, or the broker lost every message (the marker
   `grader.dispatch.broker_kept_marker` left on it is gone: a restart without persistence): re-sent at once, and so
   are pending gradings;
@@ -10,7 +10,7 @@
 - grading longer than the lease (grade task lost): the grade task is re-sent (grading is exactly-once anyway);
 - graded, but its figures and lab check still missing a lease after the grade task was sent (the worker died while
   drawing them): the grade task is re-sent, and completes the stored grade without grading again.
-A new attempt number makes every older message for that case run stale, so a late redelivery never runs twice.
+A new delivery number makes every older message for that case run stale, so a late redelivery never runs twice.
 A rocm/cuda case run with no worker of its kind is simply re-sent to the same queue: never to another backend.
 """
 
@@ -39,7 +39,7 @@ UNKNOWN_RETRY_S = 2.0
 
 @dataclass
 class Resend:
-    case_runs: list[tuple[int, int, str]] = field(default_factory=list)  # (id, attempt, backend)
+    case_runs: list[tuple[int, int, str]] = field(default_factory=list)  # (id, delivery, backend)
     were_running: set[int] = field(default_factory=set)  # ids among case_runs whose worker died: they go first
     gradings: list[int] = field(default_factory=list)
 
@@ -62,12 +62,12 @@ def orphaned(session: Session, now: datetime, liveness, broker_lost: bool = Fals
     for run in session.scalars(running.with_for_update(skip_locked=True)).all():
         # Judged only where the claiming host has a worker that answered: a silent host may be busy, not dead,
         # and is left to its lease.
-        if (run.id, run.attempt) not in held and run.worker in hosts:
+        if (run.id, run.delivery) not in held and run.worker in hosts:
             found.append((run, f"no live worker holds it (worker {run.worker} pid {run.worker_pid} is gone)"))
     # After a loss no queued run's message is trusted, however young: a duplicate is dropped as stale when claimed.
     queued = select(CaseRun).where(CaseRun.status == CaseRunState.QUEUED, CaseRun.queued_at < (now if broker_lost else grace))
     for run in session.scalars(queued.with_for_update(skip_locked=True)).all():
-        if (run.id, run.attempt) in held:
+        if (run.id, run.delivery) in held:
             continue
         if broker_lost:
             found.append((run, "its message is gone (the broker lost its messages: restarted without them)"))
@@ -96,7 +96,7 @@ def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=
         if run.status == CaseRunState.RUNNING:
             resend.were_running.add(run.id)
         lifecycle.requeue(session, run, reason)
-        resend.case_runs.append((run.id, run.attempt, run.backend))
+        resend.case_runs.append((run.id, run.delivery, run.backend))
     # A grade task lost with the broker is re-sent at once; grading happens exactly once whatever the duplicates.
     grading_lease = 0 if broker_lost and liveness is not None else settings.lease_s
     stuck = select(Submission).where(Submission.status == SubmissionState.GRADING,

@@ -67,7 +67,7 @@ class CaseRunPublic(BaseModel):
     precision: str
     status: str
     result_status: str | None
-    attempt: int
+    delivery: int = Field(description="Message number: each re-send makes every older message stale")
     tries: int
     content_key: str | None
     reused_from_id: int | None = Field(description="The case run whose measurement this one reused, if any")

@@ -104,7 +104,7 @@ def _entry(session: Session, left: CaseRun, right: CaseRun, *, requested_by_id: 
         return _add(session, AuditEntry(**base, classification="not_compared", comparison=None,
                                         summary="not compared: " + "; ".join(failed)))
     comparison = with_set_relations(compare_cases(a, b), *(_variant_set(session, r) for r in (left, right)))
-    folder = Path(settings.artifacts_dir) / "audit" / f"{left.id}-{right.id}-{right.attempt}"
+    folder = Path(settings.artifacts_dir) / "audit" / f"{left.id}-{right.id}-{right.delivery}"
     figures = _draw(a, b, comparison, folder)
     return _add(session, AuditEntry(**base | {"figures": figures}, classification=comparison.classification,
                                     summary=comparison.summary, comparison=comparison.model_dump(mode="json"),

@@ -27,9 +27,9 @@ def reusable(*, session: Session, run: CaseRun, key_inputs: dict[str, Any]) -> M
     return session.scalar(select(Measurement).where(Measurement.content_key == run.content_key))
 
 
-def process_case_run(*, session: Session, case_run_id: int, attempt: int, run_case: Callable) -> int | None:
+def process_case_run(*, session: Session, case_run_id: int, delivery: int, run_case: Callable) -> int | None:
     """Claim, reuse or run, store, finish. Returns the submission id when this call moved it to grading."""
-    run, started_grading = lifecycle.claim(session=session, case_run_id=case_run_id, attempt=attempt)
+    run, started_grading = lifecycle.claim(session=session, case_run_id=case_run_id, delivery=delivery)
     session.commit()
     if run is None:
         return _submission_of(session, case_run_id) if started_grading else None

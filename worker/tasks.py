@@ -23,12 +23,12 @@ RETRY = dict(autoretry_for=INFRA_ERRORS, max_retries=settings.max_infra_retries,
 
 
 @app.task(name="worker.tasks.run_case_run", **RETRY)
-def run_case_run(case_run_id: int, attempt: int) -> None:
+def run_case_run(case_run_id: int, delivery: int) -> None:
     from worker.audit import audit_finished_run
     from worker.case_run import process_case_run
 
     with new_session() as session:
-        to_grade = process_case_run(session=session, case_run_id=case_run_id, attempt=attempt,
+        to_grade = process_case_run(session=session, case_run_id=case_run_id, delivery=delivery,
                                     run_case=slot.run_case_in_slot)
     if to_grade is not None:
         grade_submission.apply_async(args=[to_grade], queue=GRADE_QUEUE)
@@ -83,10 +83,10 @@ def _rerun_what_died_here(**_) -> None:
             for run in lifecycle.dead_here(session):
                 lifecycle.requeue(session, run, f"its process {run.worker_pid} on {lifecycle.HOST} is gone "
                                                 "(seen by a worker starting there)")
-                todo.append((run.id, run.attempt, run.backend))
+                todo.append((run.id, run.delivery, run.backend))
             session.commit()
-        for case_run_id, attempt, backend in todo:
-            run_case_run.apply_async(args=[case_run_id, attempt], queue=backend, priority=lifecycle.RERUN_PRIORITY)
+        for case_run_id, delivery, backend in todo:
+            run_case_run.apply_async(args=[case_run_id, delivery], queue=backend, priority=lifecycle.RERUN_PRIORITY)
     except INFRA_ERRORS:  # queued in the database or not touched at all: the reconciler re-sends it
         logging.getLogger(__name__).exception("could not re-send the runs of dead processes on %s", lifecycle.HOST)
     finally:

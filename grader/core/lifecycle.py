@@ -71,32 +71,32 @@ def stuck_reason(run: CaseRun, now: datetime) -> str | None:
 
 
 def requeue(session: Session, run: CaseRun, reason: str) -> None:
-    """Back to queued under a new attempt number, which makes every older message for it stale; the caller sends it.
+    """Back to queued under a new delivery number, which makes every older message for it stale; the caller sends it.
 
     For the reconciler and a worker starting where one died: the run keeps its tries (bounded by max_infra_retries)."""
-    run.status, run.attempt, run.queued_at = CaseRunState.QUEUED, run.attempt + 1, utcnow()
+    run.status, run.delivery, run.queued_at = CaseRunState.QUEUED, run.delivery + 1, utcnow()
     run.worker = run.worker_pid = run.lease_until = None
     session.add(Event(submission_id=run.submission_id, case_run_id=run.id, state="requeued",
-                      detail=f"{reason}; attempt {run.attempt} on queue {run.backend}"))
+                      detail=f"{reason}; delivery {run.delivery} on queue {run.backend}"))
 
 
 def resend(session: Session, run: CaseRun, *, by: str) -> None:
-    """A person re-sends a failed or stuck run (`by`: "instructor NAME"): queued under a new attempt number with its
+    """A person re-sends a failed or stuck run (`by`: "instructor NAME"): queued under a new delivery number with its
     tries, result and evidence cleared as before its first run, recorded in an event that keeps the old error. A grade
     that counted the run is superseded (kept in the history) and the submission is graded again once the run
     finishes; a failed submission goes back to running. The caller has locked the submission and commits."""
     submission, now = run.submission, utcnow()
     was = run.status
     previous = run.error if was == CaseRunState.FAILED else stuck_reason(run, now)
-    old = f"attempt {run.attempt}, try {run.tries}" + (f", evidence in {run.artifact_dir}" if run.artifact_dir else "")
-    run.status, run.attempt, run.tries, run.queued_at = CaseRunState.QUEUED, run.attempt + 1, 0, now
+    old = f"delivery {run.delivery}, try {run.tries}" + (f", evidence in {run.artifact_dir}" if run.artifact_dir else "")
+    run.status, run.delivery, run.tries, run.queued_at = CaseRunState.QUEUED, run.delivery + 1, 0, now
     run.worker = run.worker_pid = run.lease_until = run.started_at = run.finished_at = None
     run.result_status = run.error = run.stderr_tail = run.wall_s = run.actual_backend = None
     run.artifact_dir = run.measurement_id = run.reused_from_id = None
     run.provenance = run.metrics = null()  # SQL NULL, as before the first run (None would store JSON 'null')
     session.add(Event(submission_id=submission.id, case_run_id=run.id, state="resent",
                       detail=f"resent by {by}: was {was} ({old}): {previous}; "
-                             f"attempt {run.attempt} on queue {run.backend}"))
+                             f"delivery {run.delivery} on queue {run.backend}"))
     grade = session.scalar(select(Grade).where(Grade.submission_id == submission.id, Grade.superseded_at.is_(None)))
     if grade is not None:
         # The grade that counted this run as not measured is kept in the history, superseded; the submission is
@@ -120,16 +120,16 @@ def lock_submission(session: Session, submission_id: int) -> None:
     session.execute(select(Submission.id).where(Submission.id == submission_id).with_for_update())
 
 
-def claim(*, session: Session, case_run_id: int, attempt: int) -> tuple[CaseRun | None, bool]:
+def claim(*, session: Session, case_run_id: int, delivery: int) -> tuple[CaseRun | None, bool]:
     """(run, False) when the run is now ours; (None, started_grading) when this delivery must not run it.
 
-    Stale deliveries (finished, superseded attempt, held by a live worker) are dropped.
+    Stale deliveries (finished, superseded delivery, held by a live worker) are dropped.
 
-    A redelivery of the same attempt may take over a running case run when the process that held it is dead
+    A redelivery of the same delivery number may take over a running case run when the process that held it is dead
     (same host) or its lease has expired; every take-over counts in `tries`, which is bounded.
     """
     run = session.get(CaseRun, case_run_id, with_for_update=True)
-    if run is None or run.attempt != attempt or run.status in TERMINAL:
+    if run is None or run.delivery != delivery or run.status in TERMINAL:
         return None, False
     now = utcnow()
     if run.status == CaseRunState.RUNNING:

@@ -43,7 +43,7 @@ def dashboard_page(request: Request, row: StaffCourse, session: SessionDep, user
     run = session.get(CaseRun, resent) if resent and 0 < resent <= MAX_ID else None
     if run is not None and run.submission.course_id == row.id:  # say what is true now, not what the URL claims
         message = (f"Case run {run.id} ({run.name} of submission {run.submission_id}) was re-sent: "
-                   f"now {run.status}, attempt {run.attempt} on the {run.backend} queue.")
+                   f"now {run.status}, delivery {run.delivery} on the {run.backend} queue.")
     return _page(request, session, user, row, message=message)
 
 

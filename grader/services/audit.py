@@ -125,5 +125,5 @@ def request_rerun(*, session: Session, user: User, case_run_id: int, request: Au
     run = create_audit_rerun(session, source=source, backend=request.backend, precision=request.precision,
                              mode=request.mode, user=user)
     session.commit()
-    sender.send_case_run(run.id, run.attempt, run.backend)
+    sender.send_case_run(run.id, run.delivery, run.backend)
     return run

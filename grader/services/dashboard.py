@@ -48,7 +48,7 @@ class RunProblem(BaseModel):
     status: str
     reason: str
     since: UtcDateTime
-    attempt: int
+    delivery: int
     resendable: bool
     not_resendable_because: str | None = None
 
@@ -164,7 +164,7 @@ def _not_resendable(run: CaseRun, submission: Submission, has_grade: bool, now: 
 
 def resend_case_run(*, session: Session, case_run_id: int, user: User, sender: Sender) -> CaseRun:
     """An instructor of the run's course re-sends a failed or stuck case run (grader.core.lifecycle.resend): a new
-    attempt on the same backend's queue, recorded in an event that names who did it and keeps the old error.
+    delivery on the same backend's queue, recorded in an event that names who did it and keeps the old error.
     NotFound, Forbidden or Conflict otherwise. Commits, then sends (so the message never precedes the state)."""
     run = session.get(CaseRun, case_run_id) if 0 < case_run_id <= MAX_ID else None
     if run is None or run.submission.course_id != user.course_id or (
@@ -184,7 +184,7 @@ def resend_case_run(*, session: Session, case_run_id: int, user: User, sender: S
     lifecycle.resend(session, run, by=f"{user.role} {user.name}")
     session.commit()
     try:
-        sender.send_case_run(run.id, run.attempt, run.backend)
+        sender.send_case_run(run.id, run.delivery, run.backend)
     except Exception:  # noqa: BLE001 - stored as queued: the reconciler re-sends it after the queue lease
         import logging
 
@@ -347,7 +347,7 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
                 problems.append(RunProblem(case_run_id=run.id, submission_id=s.id, student=s.student.name,
                                            case=run.name, status=run.status, reason=reason,
                                            since=run.finished_at or run.started_at or run.queued_at,
-                                           attempt=run.attempt, resendable=why_not is None,
+                                           delivery=run.delivery, resendable=why_not is None,
                                            not_resendable_because=why_not))
     return Dashboard(
         course=course.name,

@@ -118,7 +118,7 @@ def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id
         if run.status != CaseRunState.QUEUED:  # reused when submitted
             continue
         try:
-            sender.send_case_run(run.id, run.attempt, run.backend)
+            sender.send_case_run(run.id, run.delivery, run.backend)
         except Exception:  # stored and queued in the database: the reconciler re-sends it
             log.exception("could not enqueue case run %s; the reconciler will re-send it", run.id)
     return submission

@@ -62,8 +62,8 @@ def test_only_an_instructor_of_the_course_resends_and_only_a_failed_or_stuck_run
     response = _resend(api, failed.id)
     assert response.status_code == 202, response.text
     body = response.json()
-    assert (body["status"], body["attempt"], body["tries"], body["error"]) == ("queued", 2, 0, None)
-    assert api.sent == sent_before + [(failed.id, 2, "cpu")]  # its own backend's queue, the new attempt
+    assert (body["status"], body["delivery"], body["tries"], body["error"]) == ("queued", 2, 0, None)
+    assert api.sent == sent_before + [(failed.id, 2, "cpu")]  # its own backend's queue, the new delivery
     with _session() as session:  # back to "never measured": SQL NULL, not a stored JSON null
         assert session.scalar(select(CaseRun.id).where(CaseRun.id == failed.id, CaseRun.metrics.is_(None),
                                                        CaseRun.provenance.is_(None))) == failed.id
@@ -88,7 +88,7 @@ def test_a_stuck_run_is_resent_and_a_failed_submission_goes_back_to_running(api)
     problems = {p["case"]: p for p in api.client.get("/v1/courses/l03/dashboard", headers=api.as_("prof")).json()
                 ["problems"]}
     assert problems["N3"]["resendable"] and "past its lease" in problems["N3"]["reason"]
-    assert problems["N4"]["resendable"] and problems["N4"]["attempt"] == 1
+    assert problems["N4"]["resendable"] and problems["N4"]["delivery"] == 1
     assert _resend(api, runs["N3"].id).status_code == 202
     assert _resend(api, runs["N4"].id).status_code == 202
     after = _runs(submission)
@@ -137,7 +137,7 @@ def test_the_dashboard_page_resends_with_a_post_form(api):
     assert done.status_code == 303 and done.headers["location"].startswith(f"/courses/l03/dashboard?resent={run.id}")
     assert _runs(submission)["N2"].status == "queued"
     shown = api.client.get(done.headers["location"])
-    assert f"Case run {run.id} (N2 of submission {submission}) was re-sent: now queued, attempt 2" in shown.text
+    assert f"Case run {run.id} (N2 of submission {submission}) was re-sent: now queued, delivery 2" in shown.text
     assert form not in shown.text
     refused = api.client.post(f"/courses/l03/dashboard/case-runs/{run.id}/resend", follow_redirects=False)
     assert refused.status_code == 409 and "neither failed nor stuck" in refused.text

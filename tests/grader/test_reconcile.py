@@ -26,7 +26,7 @@ def test_broker_down_at_submit_keeps_the_runs_and_the_reconciler_resends_them(ap
     assert response.status_code == 202
     submission_id = response.json()["id"]
     runs = api.client.get(f"/v1/submissions/{submission_id}/case-runs", headers=api.as_("alice")).json()
-    assert runs and all(r["status"] == "queued" and r["attempt"] == 1 for r in runs)
+    assert runs and all(r["status"] == "queued" and r["delivery"] == 1 for r in runs)
 
     # The broker is back; the fixture records every message sent from here on.
     monkeypatch.setattr(dispatch, "send_case_run", lambda *args, **options: api.sent.append((*args, options)))
@@ -41,12 +41,12 @@ def test_broker_down_at_submit_keeps_the_runs_and_the_reconciler_resends_them(ap
     late = CliRunner().invoke(reconcile, [])
     assert late.exit_code == 0, late.output
     assert late.output.strip() == f"re-sent {len(runs)} case runs, 0 gradings"
-    # Each case run sent exactly once, under its new attempt number, to the queue of its own backend.
+    # Each case run sent exactly once, under its new delivery number, to the queue of its own backend.
     # Re-sent ahead of the runs queued since (behind any run whose worker died mid-case).
     assert sorted(api.sent) == sorted((r["id"], 2, r["backend"], {"priority": dispatch.REQUEUED_PRIORITY}) for r in runs)
     assert {r["backend"] for r in runs} == {"cpu"}
     after = api.client.get(f"/v1/submissions/{submission_id}/case-runs", headers=api.as_("alice")).json()
-    assert all(r["status"] == "queued" and r["attempt"] == 2 for r in after)
+    assert all(r["status"] == "queued" and r["delivery"] == 2 for r in after)
     events = api.client.get(f"/v1/submissions/{submission_id}/events", headers=api.as_("alice")).json()
     assert [e["state"] for e in events].count("requeued") == len(runs)
 
@@ -130,7 +130,7 @@ def test_a_lost_broker_resends_queued_runs_however_full_the_queue_and_pending_gr
         resend = find_and_requeue(session=session, liveness=liveness, broker_lost=True)
         queued = session.scalars(select(CaseRun).where(CaseRun.submission_id == ids[0])).all()
         assert sorted(resend.case_runs) == sorted((r.id, 2, "cpu") for r in queued)  # young as they are
-        assert all(r.status == "queued" and r.attempt == 2 for r in queued)
+        assert all(r.status == "queued" and r.delivery == 2 for r in queued)
         assert resend.were_running == {killed.id}
         assert resend.gradings == [ids[1]]  # its grade task went with the broker
 

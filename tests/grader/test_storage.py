@@ -97,6 +97,45 @@ def test_migration_0009_makes_every_grade_stored_before_it_complete(tmp_path):
     engine.dispose()
 
 
+def test_migration_0010_renames_a_case_runs_attempt_to_delivery_keeping_its_number(tmp_path):
+    """A case run's message number was called attempt, like a student's attempt on an assignment; 0010 renames the
+    column and every stored number stays, down and up."""
+    from alembic import command
+    from alembic.config import Config
+    from sqlalchemy import inspect, select, text
+    from sqlalchemy.orm import Session
+
+    from grader.core.db import MIGRATIONS, make_engine, migrate
+    from grader.models import User
+    from grader.services import submissions
+    from rubric import get_case
+    from tests.factories import create_people, reference_sheet
+
+    url = f"sqlite:///{tmp_path / 'm.db'}"
+    migrate(url)
+    engine = make_engine(url)
+    with Session(engine) as session:
+        create_people(session, course="l03", other_course="other")
+        alice = session.scalar(select(User).where(User.name == "alice"))
+        submissions.create_submission(session=session, student=alice, lesson="L03", sheet=reference_sheet(),
+                                      specs=[get_case("N1"), get_case("N2")], force_rerun=False)
+        session.commit()
+    with engine.begin() as conn:
+        conn.execute(text("UPDATE case_runs SET delivery = 3 WHERE name = 'N2'"))
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS))
+    config.set_main_option("sqlalchemy.url", url)
+    command.downgrade(config, "0009")
+    with engine.connect() as conn:
+        assert "delivery" not in {c["name"] for c in inspect(conn).get_columns("case_runs")}
+        assert dict(conn.execute(text("SELECT name, attempt FROM case_runs")).all()) == {"N1": 1, "N2": 3}
+    command.upgrade(config, "head")
+    with engine.connect() as conn:
+        assert "attempt" not in {c["name"] for c in inspect(conn).get_columns("case_runs")}
+        assert dict(conn.execute(text("SELECT name, delivery FROM case_runs")).all()) == {"N1": 1, "N2": 3}
+    engine.dispose()
+
+
 def test_production_refuses_embedded_and_placeholder_urls():
     from grader.settings import Settings
 

@@ -129,7 +129,7 @@ def test_a_failed_and_a_stuck_run_are_resent_from_the_dashboard_and_graded(brows
         session.commit()
         submission_id = submission.id
         failing, stuck = runs["N3"].id, runs["N4"].id
-        to_send = [(r.id, r.attempt, r.backend) for name, r in runs.items() if name != "N4"]
+        to_send = [(r.id, r.delivery, r.backend) for name, r in runs.items() if name != "N4"]
     # Every run but the stuck one is delivered to the real worker (N3's message is its last redelivery).
     send = "; ".join(f"dispatch.send_case_run({i}, {a}, {b!r})" for i, a, b in to_send)
     done = subprocess.run([sys.executable, "-c", f"from grader import dispatch; {send}"], env=stack.env,
@@ -173,7 +173,7 @@ def test_a_failed_and_a_stuck_run_are_resent_from_the_dashboard_and_graded(brows
     assert final["status"] == "graded", final
     after = {r.id: r for r in case_runs(stack, submission_id)}
     assert after[failing].status == after[stuck].status == "done"
-    assert after[failing].attempt == after[stuck].attempt == 2 and after[failing].error is None
+    assert after[failing].delivery == after[stuck].delivery == 2 and after[failing].error is None
     grade = carol.grade(submission_id)
     assert not [i["id"] for i in grade["items"] if i["verdict"] == "not_measured"]  # N3 and N4 measured
     assert grades_of(stack, submission_id) == 1

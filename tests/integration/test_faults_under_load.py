@@ -163,7 +163,7 @@ def _check_outcome(db: Db, submission_ids: list[int]) -> None:
             assert found and "(found when submitted)" in found[0], (run.id, found)
             continue
         assert mine.count("running") == run.tries, (run.id, run.tries, mine)
-        assert mine.count("requeued") == run.attempt - 1, (run.id, run.attempt, mine)
+        assert mine.count("requeued") == run.delivery - 1, (run.id, run.delivery, mine)
         assert mine[-1] == "done", (run.id, mine)
 
 

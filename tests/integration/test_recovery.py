@@ -40,7 +40,7 @@ def test_worker_killed_mid_case_requeues_and_grades_once(stack):
     final = client.wait(created["id"], poll_s=0.5, timeout_s=900)
     assert final["status"] == "graded", final
     after = {run.id: run for run in case_runs(stack, created["id"])}[victim.id]
-    assert after.status == "done" and after.tries == 2 and after.attempt == victim.attempt
+    assert after.status == "done" and after.tries == 2 and after.delivery == victim.delivery
     assert after.reused_from_id is None  # force_rerun: measured again, not borrowed
     states = [e.state for e in events(stack, created["id"]) if e.case_run_id == victim.id]
     assert states.count("running") == 2 and states[-1] == "done"
@@ -71,7 +71,7 @@ def test_reconciler_resends_runs_whose_worker_vanished(stack):
     final = stack.client("alice").wait(submission_id, poll_s=0.5, timeout_s=900)
     assert final["status"] == "graded"
     for run in case_runs(stack, submission_id):
-        assert run.status == "done" and run.attempt == 2 and run.worker != "lost-host"
+        assert run.status == "done" and run.delivery == 2 and run.worker != "lost-host"
     assert "requeued" in [e.state for e in events(stack, submission_id)]
     assert grades_of(stack, submission_id) == 1
 
@@ -153,7 +153,7 @@ def test_a_whole_worker_killed_mid_case_is_noticed_by_liveness_not_its_lease(sta
         final = client.wait(created["id"], poll_s=0.5, timeout_s=900)
         assert final["status"] == "graded", final
         after = {run.id: run for run in case_runs(stack, created["id"])}
-        assert after[victim.id].status == "done" and after[victim.id].attempt == victim.attempt + 1
+        assert after[victim.id].status == "done" and after[victim.id].delivery == victim.delivery + 1
         assert all(run.status == "done" for run in after.values())
         assert grades_of(stack, created["id"]) == 1
     finally:

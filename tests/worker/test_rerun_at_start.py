@@ -46,8 +46,8 @@ def test_a_starting_worker_resends_the_runs_of_dead_processes_on_its_host_ahead_
     assert sent == [{"args": [ids[0], 2], "queue": "cpu", "priority": lifecycle.RERUN_PRIORITY}]
     with Session(engine) as session:
         runs = {run.id: run for run in session.scalars(select(CaseRun).where(CaseRun.id.in_(ids)))}
-        assert (runs[ids[0]].status, runs[ids[0]].attempt, runs[ids[0]].worker) == ("queued", 2, None)
-        assert [(r.status, r.attempt) for r in (runs[ids[1]], runs[ids[2]])] == [("running", 1)] * 2  # alive; unknowable
+        assert (runs[ids[0]].status, runs[ids[0]].delivery, runs[ids[0]].worker) == ("queued", 2, None)
+        assert [(r.status, r.delivery) for r in (runs[ids[1]], runs[ids[2]])] == [("running", 1)] * 2  # alive; unknowable
         event = session.scalars(select(Event).where(Event.case_run_id == ids[0])).all()[-1]
         assert event.state == "requeued" and "seen by a worker starting there" in event.detail
     engine.dispose()
