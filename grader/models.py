@@ -12,7 +12,7 @@ from typing import Any
 from sqlalchemy import JSON, Boolean, DateTime, Float, ForeignKey, Index, Integer, String, Text, UniqueConstraint, text
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
-# The values of role, status, purpose, items, counted_attempt and visibility columns are grader.core.states' enums.
+# The values of role, status, purpose, part, counted_attempt and visibility columns are grader.core.states' enums.
 
 
 def utcnow() -> datetime:
@@ -75,7 +75,7 @@ class Assignment(Base):
     course_id: Mapped[int] = mapped_column(ForeignKey("courses.id"), index=True)
     title: Mapped[str] = mapped_column(String(128))
     lesson: Mapped[str] = mapped_column(String(16))
-    items: Mapped[str] = mapped_column(String(16))
+    part: Mapped[str] = mapped_column(String(16))
     open_at: Mapped[datetime] = mapped_column(DateTime)
     due_at: Mapped[datetime] = mapped_column(DateTime)
     hard_close_at: Mapped[datetime] = mapped_column(DateTime)
@@ -139,9 +139,9 @@ class Submission(Base):
     student: Mapped[User] = relationship(lazy="joined")
     assignment: Mapped[Assignment | None] = relationship()
     @property
-    def items(self) -> str:
+    def part(self) -> str:
         """Which answers its sheet holds: its assignment's part, or the whole sheet."""
-        return self.assignment.items if self.assignment is not None else "sheet"
+        return self.assignment.part if self.assignment is not None else "sheet"
 
     # The runs that grade it; audit re-runs of its runs (purpose "audit") are kept apart and never graded.
     case_runs: Mapped[list[CaseRun]] = relationship(

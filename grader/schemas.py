@@ -8,6 +8,8 @@ from typing import Annotated, Any, Literal
 from pydantic import AfterValidator, AwareDatetime, BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 from pydantic_core import PydanticCustomError
 
+from grader.core.states import AssignmentParts
+
 
 def as_utc(value: datetime) -> datetime:
     """The database stores naive UTC; every timestamp leaves the API as UTC with an explicit offset (RFC 3339)."""
@@ -198,8 +200,8 @@ class AssignmentCreate(Strict):
 
     title: str = Field(min_length=1, max_length=128)
     lesson: Literal["L03"] = "L03"
-    items: Literal["checkpoints", "exercises", "sheet"] = Field(
-        "sheet", description="checkpoints: the lesson's concept checkpoints only (graded on the lesson's own cases, "
+    part: AssignmentParts = Field(
+        AssignmentParts.SHEET, description="The part of the sheet it holds. checkpoints: the lesson's concept checkpoints only (graded on the lesson's own cases, "
                              "at once where they are stored); exercises: every "
                              "other item (predictions, hands-on, extension); sheet: all items")
     open_at: UtcInput
@@ -266,7 +268,7 @@ class AssignmentPublic(BaseModel):
     course: str
     title: str
     lesson: str
-    items: str
+    part: str
     item_ids: list[str] = Field(description="The rubric items the assignment grades")
     open_at: UtcDateTime
     due_at: UtcDateTime

@@ -321,10 +321,10 @@ def answered(sheet: PredictionSheet) -> tuple[str, ...]:
     return tuple(type(sheet.answers).model_fields)
 
 
-def parse_sheet(data: Any, items: str = "sheet") -> PredictionSheet:
+def parse_sheet(data: Any, part: str = "sheet") -> PredictionSheet:
     """Validate a sheet from JSON/YAML data; raises pydantic.ValidationError naming each bad item and rule.
 
-    `items` (checkpoints | exercises | sheet) says which answers it must hold: exactly those, so an answer to an item
+    `part` (checkpoints | exercises | sheet) says which answers it must hold: exactly those, so an answer to an item
     outside an assignment is refused (named as an extra input) rather than silently graded or dropped.
     """
-    return _SHEETS[items].model_validate(data)
+    return _SHEETS[part].model_validate(data)

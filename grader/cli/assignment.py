@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from grader.core.states import Visibility, values
+from grader.core.states import AssignmentParts, Visibility, values
 
 from grader.cli.rubric import TOKEN, URL, _call, _client
 
@@ -43,7 +43,8 @@ def assignment() -> None:
 @click.argument("course")
 @click.option("--title", required=True)
 @click.option("--lesson", default="L03", show_default=True)
-@click.option("--items", type=click.Choice(["checkpoints", "exercises", "sheet"]), default="sheet", show_default=True)
+@click.option("--part", type=click.Choice(values(AssignmentParts)), default="sheet", show_default=True,
+              help="The part of the sheet it holds: the concept checkpoints, the exercises (every other item) or all")
 @click.option("--open", "open_at", required=True, help="ISO 8601 with an offset, e.g. 2026-12-01T09:00:00+00:00")
 @click.option("--due", "due_at", required=True)
 @click.option("--close", "hard_close_at", required=True, help="The hard close: nothing is accepted after it")
@@ -66,7 +67,7 @@ def create(course: str, url: str, token: str, **fields) -> None:
     client = _client(url, token)
     row = _call(client.create_assignment, course, body)
     t = _in_zone(client, course)
-    click.echo(f"assignment #{row['id']} {row['title']!r} ({row['items']}: {', '.join(row['item_ids'])}) "
+    click.echo(f"assignment #{row['id']} {row['title']!r} ({row['part']}: {', '.join(row['item_ids'])}) "
                f"open {t(row['open_at'])}, due {t(row['due_at'])}, closes {t(row['hard_close_at'])}")
     if row["item_visibility"]:
         click.echo("shown " + ", ".join(f"{k} {v}" for k, v in row["item_visibility"].items()) +
@@ -84,7 +85,7 @@ def list_assignments(course: str, url: str, token: str) -> None:
     for a in _call(client.assignments, course):
         attempts = a["max_attempts"] or "unlimited"
         per_hour = f" ({a['max_per_hour']}/hour)" if a["max_per_hour"] else ""
-        click.echo(f"#{a['id']:<3} {a['title']:<20} {a['items']:<11} due {t(a['due_at'])}, closes "
+        click.echo(f"#{a['id']:<3} {a['title']:<20} {a['part']:<11} due {t(a['due_at'])}, closes "
                    f"{t(a['hard_close_at'])}; attempts {attempts}{per_hour}, counts {a['counted_attempt']}, "
                    f"late {a['late_penalty_per_day']:g}/day")
 

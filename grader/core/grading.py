@@ -21,7 +21,7 @@ from grader.models import Grade, Regrade, Submission, utcnow
 
 def score(submission: Submission, book) -> rubric.GradeReport:
     """The submission's sheet scored under rubric version `book` on its stored measurements (raises on a bug)."""
-    sheet = rubric.parse_sheet(submission.sheet, submission.items)
+    sheet = rubric.parse_sheet(submission.sheet, submission.part)
     results = {run.name: stored_result(run) for run in submission.case_runs}
     return rubric.grade_sheet(sheet, results, book)
 

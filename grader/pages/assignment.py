@@ -65,7 +65,7 @@ def students_view(session, assignment: Assignment) -> list[StudentRow]:
 
 @router.get("/assignments/{assignment_id}", response_class=HTMLResponse)
 def assignment_page(request: Request, assignment: InstructorsAssignment, session: SessionDep, user: SignedIn):
-    items = [(i, visibility_of(assignment, i)) for i in logic.item_ids(assignment.lesson, assignment.items)]
+    items = [(i, visibility_of(assignment, i)) for i in logic.item_ids(assignment.lesson, assignment.part)]
     return TEMPLATES.TemplateResponse(request, "assignment.html", {
         "user": user, "a": assignment, "items": items, "students": students_view(session, assignment)})
 

@@ -11,7 +11,7 @@ from functools import cache
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session, defer
 
-from grader.core.states import Role
+from grader.core.states import AssignmentParts, Role
 from grader.models import Assignment, Course, Extension, Submission, User, utcnow
 from grader.services.access import MAX_ID
 from grader.services.errors import Invalid, NotFound, Refused
@@ -23,19 +23,19 @@ HOUR = timedelta(hours=1)
 GRADESCOPE_VISIBILITY = {"immediate": "visible", "after_due": "after_due_date", "on_release": "after_published"}
 
 
-def item_ids(lesson: str, items: str) -> list[str]:
+def item_ids(lesson: str, part: str) -> list[str]:
     """The rubric items an assignment holds: checkpoints (part "checkpoint"), exercises (every other part), sheet."""
-    return list(_item_ids(lesson, items))
+    return list(_item_ids(lesson, part))
 
 
 @cache  # the shipped rubric files do not change under a running process; loading one took ~3 ms of each API read
-def _item_ids(lesson: str, items: str) -> tuple[str, ...]:
+def _item_ids(lesson: str, part: str) -> tuple[str, ...]:
     from rubric import load_rubric
 
     rubric = load_rubric(lesson)
-    if items == "checkpoints":
+    if part == AssignmentParts.CHECKPOINTS:
         return tuple(i.id for i in rubric.items if i.part == "checkpoint")
-    if items == "exercises":
+    if part == AssignmentParts.EXERCISES:
         return tuple(i.id for i in rubric.items if i.part != "checkpoint")
     return tuple(i.id for i in rubric.items)
 
@@ -205,9 +205,9 @@ def of_course(*, session: Session, course: Course) -> list[Assignment]:
 def create(*, session: Session, course: Course, user: User, fields: dict) -> Assignment:
     """Store a new assignment of the course (fields validated by grader.schemas.AssignmentCreate); Invalid naming
     each per-item visibility that names no item of the assignment. Commits."""
-    held = item_ids(fields["lesson"], fields["items"])
+    held = item_ids(fields["lesson"], fields["part"])
     strangers = [{"field": f"item_visibility.{item}",
-                  "rule": f"not an item of this assignment ({fields['items']}: {', '.join(held)})"}
+                  "rule": f"not an item of this assignment ({fields['part']}: {', '.join(held)})"}
                  for item in fields.get("item_visibility") or {} if item not in held]
     if strangers:
         raise Invalid("invalid assignment", strangers)

@@ -110,7 +110,7 @@ class AssignmentGrades(BaseModel):
 
     id: int
     title: str
-    items: str
+    part: str
     due_at: UtcDateTime
     counted_attempt: str
     page: str  # the instructor's page of the assignment
@@ -374,7 +374,7 @@ def assignment_grades(session: Session, course: Course) -> list[AssignmentGrades
 
     rows = session.scalars(select(Assignment).where(Assignment.course_id == course.id)
                            .order_by(Assignment.due_at, Assignment.id)).all()
-    return [AssignmentGrades(id=a.id, title=a.title, items=a.items, due_at=a.due_at, counted_attempt=a.counted_attempt,
+    return [AssignmentGrades(id=a.id, title=a.title, part=a.part, due_at=a.due_at, counted_attempt=a.counted_attempt,
                              page=f"/assignments/{a.id}",
                              grades=[counted_public(c) for c in counted_grades(session=session, assignment=a)])
             for a in rows]

@@ -122,7 +122,7 @@ def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric):
         return RegradeEntry(**entry, skipped="its figures and lab check are still being drawn: regrade it once "
                                              "they are (seconds)"), None
     try:
-        sheet = rubric.parse_sheet(submission.sheet, submission.items)
+        sheet = rubric.parse_sheet(submission.sheet, submission.part)
         measured = {run.name for run in submission.case_runs}
         missing = sorted(spec.name for spec in rubric.cases_to_run(sheet, new_rubric) if spec.name not in measured)
         if missing:

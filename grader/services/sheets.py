@@ -8,12 +8,12 @@ from __future__ import annotations
 from typing import Any
 
 
-def parse_sheet(data: dict[str, Any], items: str = "sheet"):
+def parse_sheet(data: dict[str, Any], part: str = "sheet"):
     """The validated sheet, answering exactly the items named (an assignment's part, or the whole sheet); raises
     pydantic.ValidationError naming each bad item."""
     import rubric
 
-    return rubric.parse_sheet(data, items)
+    return rubric.parse_sheet(data, part)
 
 
 def cases_to_run(sheet) -> list:

@@ -78,7 +78,7 @@ def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id
         # the time and attempt rules come before the sheet: a closed assignment takes nothing
         attempt, late_seconds = assignments.admit(session=session, assignment=assignment, student=user, now=utcnow())
     try:
-        parsed = sheets.parse_sheet(sheet, assignment.items if assignment else "sheet")
+        parsed = sheets.parse_sheet(sheet, assignment.part if assignment else "sheet")
         specs = sheets.cases_to_run(parsed)
     except ValidationError as exc:
         from rubric import describe_errors

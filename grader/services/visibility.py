@@ -31,7 +31,7 @@ def withheld_items(*, session: Session, submission: Submission, user: User, now:
     if assignment is None or (user.role in STAFF and user.course_id == submission.course_id):
         return {}
     why: dict[str, str | None] = {Visibility.IMMEDIATE: None}
-    ids = item_ids(assignment.lesson, assignment.items)
+    ids = item_ids(assignment.lesson, assignment.part)
     kinds = {visibility_of(assignment, i) for i in ids}
     if Visibility.AFTER_DUE in kinds:
         due = dates_for(session=session, assignment=assignment, student=submission.student).due_at
@@ -82,7 +82,7 @@ class GradeView:
     @property
     def item_count(self) -> int:
         assignment = self.submission.assignment
-        return len(item_ids(assignment.lesson, assignment.items)) if assignment is not None else 0
+        return len(item_ids(assignment.lesson, assignment.part)) if assignment is not None else 0
 
     @property
     def nothing_shown(self) -> str | None:

@@ -31,7 +31,7 @@ def run(api, monkeypatch, *args, who="prof"):
 
 
 def test_create_with_item_visibility_and_an_hourly_limit(api, monkeypatch):
-    made = run(api, monkeypatch, "assignment", "create", "l03", "--title", "CP", "--items", "checkpoints",
+    made = run(api, monkeypatch, "assignment", "create", "l03", "--title", "CP", "--part", "checkpoints",
                "--open", at(-1), "--due", at(1), "--close", at(2), "--visibility", "after_due",
                "--item-visibility", "C2=immediate", "--item-visibility", "C3=on_release", "--max-per-hour", "4")
     assert made.exit_code == 0, made.output
@@ -41,7 +41,7 @@ def test_create_with_item_visibility_and_an_hourly_limit(api, monkeypatch):
     bad = run(api, monkeypatch, "assignment", "create", "l03", "--title", "CP", "--open", at(-1), "--due", at(1),
               "--close", at(2), "--item-visibility", "C3=later")
     assert bad.exit_code != 0 and "--item-visibility" in bad.output and "ITEM=WHEN" in bad.output
-    stranger = run(api, monkeypatch, "assignment", "create", "l03", "--title", "CP", "--items", "checkpoints",
+    stranger = run(api, monkeypatch, "assignment", "create", "l03", "--title", "CP", "--part", "checkpoints",
                    "--open", at(-1), "--due", at(1), "--close", at(2), "--item-visibility", "A1=on_release")
     assert stranger.exit_code != 0 and "item_visibility.A1: not an item of this assignment" in stranger.output
 

@@ -13,7 +13,7 @@ def at(days: float = 0, hours: float = 0) -> str:
 
 
 def body(**over) -> dict:
-    return {"title": "Checkpoints", "items": "checkpoints", "open_at": at(-1), "due_at": at(1), "hard_close_at": at(3),
+    return {"title": "Checkpoints", "part": "checkpoints", "open_at": at(-1), "due_at": at(1), "hard_close_at": at(3),
             **over}
 
 
@@ -45,10 +45,10 @@ def test_an_instructor_creates_an_assignment_everyone_in_the_course_lists_it(api
         assert api.client.get(f"/v1/assignments/{row['id']}", headers=api.as_(who)).json() == row
 
 
-@pytest.mark.parametrize("items, part_ids", [("exercises", 18), ("sheet", 26)])
-def test_exercises_are_every_item_but_the_checkpoints(api, items, part_ids):
-    row = create(api, items=items).json()
-    assert len(row["item_ids"]) == part_ids and ("C1" in row["item_ids"]) == (items == "sheet")
+@pytest.mark.parametrize("part, part_ids", [("exercises", 18), ("sheet", 26)])
+def test_exercises_are_every_item_but_the_checkpoints(api, part, part_ids):
+    row = create(api, part=part).json()
+    assert len(row["item_ids"]) == part_ids and ("C1" in row["item_ids"]) == (part == "sheet")
 
 
 @pytest.mark.parametrize("over, field, rule", [
@@ -58,7 +58,7 @@ def test_exercises_are_every_item_but_the_checkpoints(api, items, part_ids):
     ({"late_penalty_per_day": 1.5}, "late_penalty_per_day", "less than or equal to 1"),
     ({"late_penalty_cap": -0.1}, "late_penalty_cap", "greater than or equal to 0"),
     ({"max_attempts": 0}, "max_attempts", "greater than or equal to 1"),
-    ({"items": "everything"}, "items", "checkpoints"),
+    ({"part": "everything"}, "part", "checkpoints"),
     ({"counted_attempt": "first"}, "counted_attempt", "latest"),
     ({"visibility": "never"}, "visibility", "on_release"),
     ({"open_at": "0001-01-01T00:00:00+05:00"}, "open_at", "outside the representable range"),
@@ -97,7 +97,7 @@ def test_the_cli_creates_and_lists_over_http(api, monkeypatch):
         return c
 
     monkeypatch.setattr(assignment, "_client", client)
-    made = CliRunner().invoke(main, ["assignment", "create", "l03", "--title", "Lab 3", "--items", "sheet",
+    made = CliRunner().invoke(main, ["assignment", "create", "l03", "--title", "Lab 3", "--part", "sheet",
                                      "--open", at(-1), "--due", at(1), "--close", at(2), "--penalty-per-day", "0.1",
                                      "--max-attempts", "3", "--token", api.tokens["prof"]])
     assert made.exit_code == 0, made.output
@@ -221,7 +221,7 @@ def test_an_exercise_submission_queues_its_cases_and_holds_no_checkpoint(api):
     from rubric.sheet import CHECKPOINT_IDS
     from tests.factories import reference_sheet
 
-    aid = create(api, items="exercises").json()["id"]
+    aid = create(api, part="exercises").json()["id"]
     sheet = reference_sheet()
     sheet["answers"] = {k: v for k, v in sheet["answers"].items() if k not in CHECKPOINT_IDS}
     response = submit(api, aid, sheet=sheet)

@@ -107,7 +107,7 @@ def world(seeded, tmp_path):
         session.commit()
         ids = {"submission_id": sid, "entry_id": entry.id, "case_run_id": run.id}
     created = api.client.post("/v1/courses/l03/assignments", headers=api.as_("prof"), json={
-        "title": "Checkpoints", "items": "checkpoints", "open_at": "2020-01-01T00:00:00Z",
+        "title": "Checkpoints", "part": "checkpoints", "open_at": "2020-01-01T00:00:00Z",
         "due_at": "2099-01-01T00:00:00Z", "hard_close_at": "2099-01-02T00:00:00Z"})
     assert created.status_code == 201, created.text
     ids["assignment_id"] = created.json()["id"]
@@ -150,7 +150,7 @@ VALID_GETS = [
 VALID_WRITES = [
     ("POST", "/v1/submissions", "alice", {}, {"sheet": reference_sheet()}),
     ("POST", "/v1/courses/{course}/assignments", "prof", {"course": "l03"}, {
-        "title": "Lab 3", "items": "sheet", "open_at": "2020-01-01T00:00:00Z", "due_at": "2099-01-01T00:00:00Z",
+        "title": "Lab 3", "part": "sheet", "open_at": "2020-01-01T00:00:00Z", "due_at": "2099-01-01T00:00:00Z",
         "hard_close_at": "2099-01-02T00:00:00Z"}),
     ("POST", "/v1/assignments/{assignment_id}/extensions", "prof", {}, {
         "student": "alice", "due_at": "2099-01-05T00:00:00Z", "hard_close_at": "2099-01-06T00:00:00Z"}),

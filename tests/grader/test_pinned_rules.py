@@ -21,7 +21,7 @@ def at(days: float = 0, hours: float = 0) -> str:
 
 
 def create_assignment(api, **over) -> int:
-    body = {"title": "Checkpoints", "items": "checkpoints", "open_at": at(-1), "due_at": at(1), "hard_close_at": at(3),
+    body = {"title": "Checkpoints", "part": "checkpoints", "open_at": at(-1), "due_at": at(1), "hard_close_at": at(3),
             **over}
     response = api.client.post("/v1/courses/l03/assignments", json=body, headers=api.as_("prof"))
     assert response.status_code == 201, response.text

@@ -136,6 +136,39 @@ def test_migration_0010_renames_a_case_runs_attempt_to_delivery_keeping_its_numb
     engine.dispose()
 
 
+def test_migration_0011_renames_an_assignments_items_to_part_keeping_it(tmp_path):
+    """An assignment's part of the sheet (checkpoints, exercises, sheet) was a column named items; it stays, down and
+    up."""
+    from alembic import command
+    from alembic.config import Config
+    from sqlalchemy import text
+
+    from grader.core.db import MIGRATIONS, make_engine, migrate
+
+    url = f"sqlite:///{tmp_path / 'm.db'}"
+    migrate(url)
+    engine = make_engine(url)
+    with engine.begin() as conn:
+        conn.execute(text("INSERT INTO courses (name, created_at, timezone) VALUES ('c', CURRENT_TIMESTAMP, 'UTC')"))
+        conn.execute(text("INSERT INTO users (course_id, name, role, created_at) VALUES (1, 'p', 'instructor', "
+                          "CURRENT_TIMESTAMP)"))
+        conn.execute(text(
+            "INSERT INTO assignments (course_id, title, lesson, part, open_at, due_at, hard_close_at, "
+            "late_penalty_per_day, counted_attempt, visibility, item_visibility, created_by_id, created_at) VALUES "
+            "(1, 'CP', 'L03', 'checkpoints', CURRENT_TIMESTAMP, CURRENT_TIMESTAMP, CURRENT_TIMESTAMP, 0, 'latest', "
+            "'immediate', '{}', 1, CURRENT_TIMESTAMP)"))
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS))
+    config.set_main_option("sqlalchemy.url", url)
+    command.downgrade(config, "0010")
+    with engine.connect() as conn:
+        assert conn.execute(text("SELECT items FROM assignments")).scalar() == "checkpoints"
+    command.upgrade(config, "head")
+    with engine.connect() as conn:
+        assert conn.execute(text("SELECT part FROM assignments")).scalar() == "checkpoints"
+    engine.dispose()
+
+
 def test_production_refuses_embedded_and_placeholder_urls():
     from grader.settings import Settings
 

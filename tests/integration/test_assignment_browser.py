@@ -67,7 +67,7 @@ def test_the_instructor_opens_an_assignment_from_the_dashboard_and_reads_every_s
     prof.update_course(COURSE, {"timezone": "Europe/Berlin"})
     prof.import_roster(COURSE, "student_id,name,email\ns1001,Ada Lovelace,ada@example.edu\n")
     assignment = prof.create_assignment(COURSE, {
-        "title": "Week 3 checkpoints", "items": "checkpoints", "open_at": at(days=-3), "due_at": at(hours=-26),
+        "title": "Week 3 checkpoints", "part": "checkpoints", "open_at": at(days=-3), "due_at": at(hours=-26),
         "hard_close_at": at(days=2), "late_penalty_per_day": 0.1, "late_penalty_cap": 0.3, "counted_attempt": "best",
         "item_visibility": {"C3": "on_release"}, "max_attempts": 3})
     aid = assignment["id"]

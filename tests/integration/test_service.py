@@ -154,7 +154,7 @@ def test_a_checkpoint_assignment_is_graded_by_the_worker_on_the_lesson_cases_the
 
     now = datetime.now(UTC)
     aid = stack.client("prof").create_assignment("l03-test", {
-        "title": "Checkpoints", "items": "checkpoints", "open_at": (now - timedelta(hours=1)).isoformat(),
+        "title": "Checkpoints", "part": "checkpoints", "open_at": (now - timedelta(hours=1)).isoformat(),
         "due_at": (now + timedelta(days=1)).isoformat(), "hard_close_at": (now + timedelta(days=2)).isoformat()})["id"]
     created, final = submit_and_wait(stack, checkpoint_sheet("alice"), assignment_id=aid, force_rerun=True)
     assert created["status"] != "graded" and created["progress"]["total"] == len(LESSON_RUNS)

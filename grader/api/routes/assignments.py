@@ -20,8 +20,8 @@ router = APIRouter(tags=["assignments"], responses=errors(401, 404, 422))
 
 def assignment_public(a: Assignment) -> AssignmentPublic:
     return AssignmentPublic(
-        id=a.id, course=a.course.name, title=a.title, lesson=a.lesson, items=a.items,
-        item_ids=logic.item_ids(a.lesson, a.items), open_at=a.open_at, due_at=a.due_at, hard_close_at=a.hard_close_at,
+        id=a.id, course=a.course.name, title=a.title, lesson=a.lesson, part=a.part,
+        item_ids=logic.item_ids(a.lesson, a.part), open_at=a.open_at, due_at=a.due_at, hard_close_at=a.hard_close_at,
         late_penalty_per_day=a.late_penalty_per_day, late_penalty_cap=a.late_penalty_cap,
         max_attempts=a.max_attempts, max_per_hour=a.max_per_hour, counted_attempt=a.counted_attempt,
         visibility=a.visibility, item_visibility=a.item_visibility or {}, released_at=a.released_at,
