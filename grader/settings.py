@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
+from limits import parse
 from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
@@ -62,8 +63,6 @@ class Settings(BaseSettings):
     @field_validator("rate_limit_submissions")
     @classmethod
     def _a_rate_limit(cls, value: str) -> str:
-        from limits import parse
-
         parse(value)  # raises ValueError naming the bad notation
         return value
 

@@ -10,6 +10,9 @@ from typing import Annotated
 
 from fastapi import Depends
 from fastapi.security import HTTPAuthorizationCredentials
+from limits import parse
+from limits.storage import storage_from_string
+from limits.strategies import MovingWindowRateLimiter
 
 from grader.api.deps import CurrentUser, bearer
 from grader.api.errors import ErrorWithFields
@@ -19,9 +22,6 @@ from grader.settings import settings
 
 @lru_cache
 def _limiter(storage_url: str):
-    from limits.storage import storage_from_string
-    from limits.strategies import MovingWindowRateLimiter
-
     return MovingWindowRateLimiter(storage_from_string(storage_url))
 
 
@@ -30,7 +30,6 @@ def limit_submissions(_: CurrentUser,
     """Counts one submission against the caller's token (after authentication: an unknown token is a 401, not a 429).
 
     Only the token's hash names the counter, as in the database. Refused attempts are not counted."""
-    from limits import parse
 
     item = parse(settings.rate_limit_submissions)
     limiter, key = _limiter(settings.rate_limit_storage_url), hash_token(credentials.credentials)

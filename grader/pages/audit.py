@@ -4,6 +4,7 @@ figures and provenance side by side, the entry's figures, the CSV, and the form 
 from __future__ import annotations
 
 from pathlib import Path
+from urllib.parse import urlencode
 
 from fastapi import APIRouter, Form, Request, status
 from fastapi.responses import FileResponse, HTMLResponse, PlainTextResponse, RedirectResponse
@@ -12,13 +13,13 @@ from pydantic import ValidationError
 from grader import dispatch
 from grader.api.deps import MAX_ID, SessionDep
 from grader.models import AuditEntry
-from grader.services import audit
-from grader.services.audit import AuditRerunRequest, Filters, entries_csv, filtered_entries
-from grader.services.errors import DomainError, Forbidden, NotFound
 from grader.pages.auth import PageUser, Staff
 from grader.pages.errors import not_found as _not_found
 from grader.pages.errors import sign_in_redirect as _sign_in_redirect
 from grader.pages.templates import TEMPLATES
+from grader.services import audit
+from grader.services.audit import AuditRerunRequest, Filters, entries_csv, filtered_entries
+from grader.services.errors import DomainError, Forbidden, NotFound
 
 router = APIRouter(include_in_schema=False)
 CLASS_TEXT = {
@@ -102,6 +103,5 @@ def audit_rerun_form(request: Request, session: SessionDep, user: Staff,
         message = f"Refused: {exc.detail}"
     except ValidationError as exc:
         message = "Refused: " + "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in exc.errors())
-    from urllib.parse import urlencode
 
     return RedirectResponse(f"/audit?{urlencode({'message': message})}", status_code=status.HTTP_303_SEE_OTHER)

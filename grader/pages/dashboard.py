@@ -15,23 +15,29 @@ from functools import lru_cache
 from fastapi import APIRouter, Request, status
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
-from grader.api.deps import MAX_ID, SessionDep
-from grader.models import CaseRun, Course
 from grader import dispatch
-from grader.pages.auth import PageUser, SignedIn, StaffCourse, staff_course
-from grader.services.dashboard import resend_case_run
+from grader.api.deps import MAX_ID, SessionDep
 from grader.api.errors import status_of
-from grader.services.errors import Conflict, Forbidden, NotFound
+from grader.models import CaseRun, Course
+from grader.pages.auth import PageUser, SignedIn, StaffCourse, staff_course
 from grader.pages.errors import not_found as _not_found
 from grader.pages.templates import TEMPLATES
+from grader.services.dashboard import (
+    BackendSpread,
+    PredictionPlot,
+    backend_spread,
+    course_dashboard,
+    graded_reports,
+    predictions,
+    resend_case_run,
+)
+from grader.services.errors import Conflict, Forbidden, NotFound
 
 router = APIRouter(include_in_schema=False)
 
 
 def _page(request: Request, session, user, row: Course, *, message: str | None = None, error: str | None = None,
           status_code: int = 200) -> HTMLResponse:
-    from grader.services.dashboard import course_dashboard
-
     return TEMPLATES.TemplateResponse(request, "dashboard.html",
                                       {"user": user, "d": course_dashboard(session=session, course=row),
                                        "message": message, "error": error}, status_code=status_code)
@@ -62,8 +68,6 @@ def resend_form(request: Request, row: StaffCourse, case_run_id: int, session: S
 
 @router.get("/courses/{course}/dashboard/charts/{name}.svg")
 def chart(request: Request, course: str, name: str, session: SessionDep, user: PageUser):
-    from grader.services.dashboard import backend_spread, graded_reports, predictions
-
     if user is None:
         return Response(status_code=status.HTTP_401_UNAUTHORIZED)
     try:
@@ -97,10 +101,9 @@ BACKEND_STYLE = {"cpu": ("o", "#444444"), "rocm": ("s", "#b8322a"), "cuda": ("D"
 def _svg(name: str, data: str) -> bytes:
     import io
 
+    # lazy: matplotlib costs the API's start ~0.5 s and only a chart request draws
     import matplotlib
     from matplotlib.figure import Figure
-
-    from grader.services.dashboard import BackendSpread, PredictionPlot
 
     with _DRAWING, matplotlib.rc_context({"svg.fonttype": "none", "font.size": 9, "svg.hashsalt": "dashboard"}):
         if name == "backends":

@@ -17,6 +17,7 @@ from grader.pages.auth import InstructorCourse, SignedIn, StaffCourse
 from grader.pages.errors import not_found as _not_found
 from grader.pages.templates import TEMPLATES
 from grader.services.regrade import commit_regrade, preview_regrade, record
+from rubric import ArchivedRubric
 
 router = APIRouter(include_in_schema=False)
 
@@ -37,8 +38,6 @@ def rubrics_page(request: Request, row: StaffCourse, session: SessionDep, user: 
 @router.get("/courses/{course}/regrade", response_class=HTMLResponse)
 def regrade_preview_page(request: Request, row: StaffCourse, session: SessionDep, user: SignedIn, version: str = "",
                          lesson: str = "L03"):
-    from rubric import ArchivedRubric
-
     try:
         preview = preview_regrade(session, course=row, lesson=lesson, version=version)
     except (LookupError, ArchivedRubric) as exc:

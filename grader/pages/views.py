@@ -10,11 +10,15 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 
+from sqlalchemy.orm import object_session
+
+from grader.core.rubrics import stored_version
+from grader.core.states import CaseRunState, SubmissionState
 from grader.models import CaseRun, Grade, Submission, utcnow
+from grader.services.exports import EVIDENCE
 from grader.services.visibility import GradeView
 from grader.settings import settings
 from rubric.metrics import TUMBLE_EXPLANATION, tumble_angle_deg
-from grader.core.states import CaseRunState, SubmissionState
 
 # A case still running after this long on a fresh worker is most likely compiling Genesis kernels (~100 s once).
 FIRST_RUN_NOTE_AFTER_S = 20.0
@@ -148,8 +152,6 @@ def _elapsed(run: CaseRun, now: datetime) -> float | None:
 
 
 def _files(run: CaseRun) -> list[str]:
-    from grader.services.exports import EVIDENCE
-
     if not run.artifact_dir or not Path(run.artifact_dir).is_dir():
         return []
     return [name for name in EVIDENCE if (Path(run.artifact_dir) / name).is_file()]
@@ -189,9 +191,6 @@ def _rubric(grade: Grade):
     """The grade's rubric version as the service stored it (shipped or published by an instructor). Read in the
     request's own session (a second one would hold a second pooled connection per request, and 50 readers at once
     exhausted the pool) and without parsing the shipped files on every page view."""
-    from sqlalchemy.orm import object_session
-
-    from grader.core.rubrics import stored_version
 
     try:
         return stored_version(object_session(grade), grade.rubric_lesson, grade.rubric_version)

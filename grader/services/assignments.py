@@ -12,10 +12,12 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session, defer
 
 from grader.core.states import AssignmentParts, Role
-from grader.models import Assignment, Course, Extension, Submission, User, utcnow
+from grader.core.timezones import iso
+from grader.models import Assignment, Course, Extension, Grade, Submission, User, utcnow
+from grader.schemas import CountedGradePublic
 from grader.services.access import MAX_ID
 from grader.services.errors import Invalid, NotFound, Refused
-from grader.core.timezones import iso
+from rubric import load_rubric
 
 DAY_S = 86400
 HOUR = timedelta(hours=1)
@@ -30,8 +32,6 @@ def item_ids(lesson: str, part: str) -> list[str]:
 
 @cache  # the shipped rubric files do not change under a running process; loading one took ~3 ms of each API read
 def _item_ids(lesson: str, part: str) -> tuple[str, ...]:
-    from rubric import load_rubric
-
     rubric = load_rubric(lesson)
     if part == AssignmentParts.CHECKPOINTS:
         return tuple(i.id for i in rubric.items if i.part == "checkpoint")
@@ -133,8 +133,6 @@ def counted_score(assignment: Assignment, submission: Submission, raw: float, ma
 
 
 def _graded(*, session: Session, assignment: Assignment, student_id: int | None = None):
-    from grader.models import Grade
-
     query = (select(Submission, Grade).join(Grade, Grade.submission_id == Submission.id)
              .where(Submission.assignment_id == assignment.id, Grade.superseded_at.is_(None))
              .options(defer(Grade.report), defer(Submission.sheet)))  # totals only: never decode the big JSON
@@ -162,7 +160,6 @@ def counted_grades(*, session: Session, assignment: Assignment) -> list[Counted]
 
 def counted_public(c: Counted):
     """A counted grade as the API shows it (grader.schemas.CountedGradePublic)."""
-    from grader.schemas import CountedGradePublic
 
     return CountedGradePublic(student=c.submission.student.name, submission_id=c.submission.id,
                               attempt=c.submission.attempt, submitted_at=c.submission.created_at,

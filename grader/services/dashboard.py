@@ -10,6 +10,7 @@ from this same data, never from a second query.
 from __future__ import annotations
 
 import json
+import logging
 import statistics
 from collections import Counter
 from datetime import datetime
@@ -20,14 +21,17 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session, selectinload
 
 from grader.core import lifecycle
-from grader.core.states import Role
+from grader.core.rubrics import current_grade
+from grader.core.states import CaseRunState, Role, SubmissionState
+from grader.models import Assignment, CaseRun, Course, Grade, Submission, User, utcnow
+from grader.schemas import CountedGradePublic, UtcDateTime
 from grader.services.access import MAX_ID, require_instructor
+from grader.services.assignments import counted_grades, counted_public
 from grader.services.errors import Conflict, NotFound
 from grader.services.sending import Sender
-from grader.core.rubrics import current_grade
-from grader.models import CaseRun, Course, Grade, Submission, User, utcnow
-from grader.schemas import CountedGradePublic, UtcDateTime
-from grader.core.states import CaseRunState, SubmissionState
+from rubric import class_analysis
+from rubric import sheet as sheet_models
+from rubric.scoring import GradeReport
 
 
 class RosterRow(BaseModel):
@@ -186,7 +190,6 @@ def resend_case_run(*, session: Session, case_run_id: int, user: User, sender: S
     try:
         sender.send_case_run(run.id, run.delivery, run.backend)
     except Exception:  # noqa: BLE001 - stored as queued: the reconciler re-sends it after the queue lease
-        import logging
 
         logging.getLogger(__name__).exception("could not enqueue resent case run %s", run.id)
     return run
@@ -216,8 +219,6 @@ def _fmt(value: float, unit: str) -> str:
 
 
 def _prediction_rows(item_id: str, submission: Submission, report) -> list[PredictionRow]:
-    from rubric import sheet as sheet_models
-
     spec = PREDICTED_ITEMS[item_id]
     graded = report.item(item_id)
     answer = getattr(sheet_models, item_id).model_validate_json(graded.prediction)
@@ -320,14 +321,10 @@ def _case_order(name: str) -> tuple[int, str]:
 # --- the whole dashboard ------------------------------------------------------------------------------------------
 
 def graded_reports(session: Session, course: Course) -> list[tuple[Submission, Any]]:
-    from rubric.scoring import GradeReport
-
     return [(s, GradeReport.model_validate(g.report)) for s, g in latest_graded(session, course)]
 
 
 def course_dashboard(*, session: Session, course: Course) -> Dashboard:
-    from rubric import class_analysis
-
     now = utcnow()
     submissions = session.scalars(select(Submission).where(Submission.course_id == course.id)
                                   .options(selectinload(Submission.case_runs)).order_by(Submission.id)).all()
@@ -369,8 +366,6 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
 
 def assignment_grades(session: Session, course: Course) -> list[AssignmentGrades]:
     """Every assignment of the course, by due date, with the counted grade of each student who has one."""
-    from grader.services.assignments import counted_grades, counted_public
-    from grader.models import Assignment
 
     rows = session.scalars(select(Assignment).where(Assignment.course_id == course.id)
                            .order_by(Assignment.due_at, Assignment.id)).all()

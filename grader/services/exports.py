@@ -15,6 +15,8 @@ from grader.models import Assignment, CaseRun, Course, Grade, Submission
 from grader.services import assignments
 from grader.services.errors import Conflict, NotFound
 from grader.services.visibility import visibility_of
+from rubric.exports import grades_csv, gradescope_results
+from rubric.scoring import GradeReport
 
 # What a case run writes and may be downloaded, with its media type. Nothing else is ever served from its folder.
 EVIDENCE = {"arrays.npz": "application/octet-stream", "provenance.json": "application/json",
@@ -25,15 +27,12 @@ COUNTED_COLUMNS = ("student", "counted_score", "raw_score", "max_score", "penalt
 
 
 def _report(grade: Grade):
-    from rubric.scoring import GradeReport
-
     return GradeReport.model_validate(grade.report)
 
 
 def course_grades_csv(*, session: Session, course: Course, latest: bool = False) -> tuple[str, str]:
     """(file name, CSV) of the course's current grades with each row's submission id and time (UTC): every graded
     submission in submission order, or with `latest` each student's latest graded attempt."""
-    from rubric.exports import grades_csv
 
     graded = session.execute(select(Submission, Grade).join(Grade, Grade.submission_id == Submission.id)
                              .where(Submission.course_id == course.id, Grade.superseded_at.is_(None))
@@ -61,7 +60,6 @@ def counted_grades_csv(*, session: Session, assignment: Assignment) -> tuple[str
 def gradescope(*, session: Session, submission: Submission) -> dict:
     """Gradescope results.json of one graded submission; each item's visibility is its assignment's for that item
     (immediate: visible, after_due: after_due_date, on_release: after_published). Conflict while not graded."""
-    from rubric.exports import gradescope_results
 
     grade = current_grade(session, submission.id)
     if grade is None:

@@ -15,13 +15,16 @@ from pydantic import BaseModel
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+import rubric
 from grader.core import grading
 from grader.core.lab_check import lab_check
 from grader.core.lifecycle import stored_result
 from grader.core.rubrics import course_version, get_version
 from grader.models import Course, Grade, Regrade, Submission, User, utcnow
-from grader.settings import settings
 from grader.schemas import UtcDateTime
+from grader.settings import settings
+from rubric.governance import report_changes, rubric_changes
+from rubric.scoring.engine import ensure_gradable
 
 
 class ItemDiff(BaseModel):
@@ -110,8 +113,6 @@ def _why(item_id: str, old_rubric, new_rubric, new_item) -> str:
 
 def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric):
     """(entry, new GradeReport or None) for one submission, from its stored measurements only."""
-    import rubric
-    from rubric.governance import report_changes
 
     entry = dict(submission_id=submission.id, student=submission.student.name, old_version=grade.rubric_version,
                  new_version=new_rubric.version, old_total=grade.total, new_total=None, max_total=None,
@@ -148,9 +149,6 @@ def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric):
 
 
 def _compute(session: Session, course: Course, lesson: str, version: str):
-    from rubric.governance import rubric_changes
-    from rubric.scoring.engine import ensure_gradable
-
     started = time.perf_counter()
     new_rubric = get_version(session, lesson, version)
     ensure_gradable(new_rubric)

@@ -12,13 +12,14 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from grader.core import grading, lifecycle
-from grader.core.rubrics import course_rubric
 from grader.core.audit import spec_key
+from grader.core.rubrics import course_rubric
 from grader.core.states import CaseRunState, Role
 from grader.models import Assignment, CaseRun, Course, Event, Submission, User, utcnow
 from grader.services import assignments, sheets
 from grader.services.errors import Forbidden, Invalid, Refused, field_errors
 from grader.services.sending import Sender
+from rubric import describe_errors, with_backend
 
 log = logging.getLogger(__name__)
 
@@ -81,11 +82,9 @@ def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id
         parsed = sheets.parse_sheet(sheet, assignment.part if assignment else "sheet")
         specs = sheets.cases_to_run(parsed)
     except ValidationError as exc:
-        from rubric import describe_errors
 
         raise Invalid("invalid sheet", field_errors(describe_errors(exc), prefix="sheet")) from None
     if backend is not None:
-        from rubric import with_backend
 
         specs = [with_backend(spec, backend=backend) for spec in specs]
     if assignment is not None and parsed.lesson != assignment.lesson:

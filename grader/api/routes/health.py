@@ -1,9 +1,13 @@
 """Health: no token needed, so load balancers and compose healthchecks can call it."""
 
 from fastapi import APIRouter
+from fastapi.responses import Response
+from prometheus_client import CONTENT_TYPE_LATEST, CollectorRegistry, generate_latest
 from sqlalchemy import text
 
 from grader.api.deps import SessionDep
+from grader.core.db import new_session
+from grader.ops import StatusCollector
 from grader.schemas import Health
 
 router = APIRouter(tags=["health"])
@@ -23,11 +27,6 @@ metrics_router = APIRouter()
 @metrics_router.get("/metrics", include_in_schema=False)
 def metrics():
     """Prometheus metrics (text exposition format): queues, workers, case runs, failures, durations."""
-    from fastapi.responses import Response
-    from prometheus_client import CONTENT_TYPE_LATEST, CollectorRegistry, generate_latest
-
-    from grader.core.db import new_session
-    from grader.ops import StatusCollector
 
     registry = CollectorRegistry()
     registry.register(StatusCollector(new_session))

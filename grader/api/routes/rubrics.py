@@ -14,13 +14,16 @@ from sqlalchemy.exc import IntegrityError
 
 from grader.api.deps import CurrentUser, SessionDep, StaffCourse, StaffUser
 from grader.api.errors import error
-from grader.services.errors import field_errors
 from grader.api.responses import errors
 from grader.core import rubrics as store
-from grader.services import access
 from grader.models import Regrade, RubricVersion
-from grader.services.regrade import RegradePreview, RegradeRecord, commit_regrade, preview_regrade, record
 from grader.schemas import UtcDateTime
+from grader.services import access
+from grader.services.errors import field_errors
+from grader.services.regrade import RegradePreview, RegradeRecord, commit_regrade, preview_regrade, record
+from rubric import ArchivedRubric
+from rubric.governance import RubricGovernanceError
+from rubric.specs import describe_errors
 
 LESSON = r"^L[0-9]{2}$"
 VERSION = r"^[0-9]+(\.[0-9]+)*$"
@@ -64,8 +67,6 @@ def list_versions(lesson: Annotated[str, Path(pattern=LESSON)], session: Session
 def publish(session: SessionDep, user: CurrentUser, content: Annotated[dict[str, Any], Body()]):
     """Publish a rubric version (the same fields as a rubric/lessons YAML file, as JSON). Governance refuses a
     change to a version any grade used and a changed tolerance without a new review record (409)."""
-    from rubric.governance import RubricGovernanceError
-    from rubric.specs import describe_errors
 
     access.require_instructor(user, action="publish rubric versions")
     try:
@@ -91,7 +92,6 @@ def regrade_preview(row: StaffCourse, session: SessionDep,
                     version: Annotated[str, Query(pattern=VERSION, max_length=32)],
                     lesson: Annotated[str, Query(pattern=LESSON)] = "L03"):
     """Per student, the old and new totals and each item that changes and why; nothing is written."""
-    from rubric import ArchivedRubric
 
     _version_or_404(session, lesson, version)
     try:
@@ -104,7 +104,6 @@ def regrade_preview(row: StaffCourse, session: SessionDep,
              responses={**errors(404, 413), **CONFLICT})
 def regrade_commit(row: StaffCourse, request: RegradeRequest, session: SessionDep, user: CurrentUser):
     """Regrade the course's lesson under the version and keep the old grades; later submissions use it too."""
-    from rubric import ArchivedRubric
 
     access.require_instructor(user, action="commit a regrade")
     _version_or_404(session, request.lesson, request.version)
