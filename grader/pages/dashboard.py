@@ -16,9 +16,9 @@ from fastapi import APIRouter, Request, status
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
 from grader import dispatch
-from grader.api.deps import MAX_ID, SessionDep
+from grader.api.deps import SessionDep
 from grader.api.errors import status_of
-from grader.models import CaseRun, Course
+from grader.models import Course
 from grader.pages.auth import PageUser, SignedIn, StaffCourse, staff_course
 from grader.pages.errors import not_found as _not_found
 from grader.pages.templates import TEMPLATES
@@ -29,6 +29,7 @@ from grader.services.dashboard import (
     course_dashboard,
     graded_reports,
     predictions,
+    case_run_of,
     resend_case_run,
 )
 from grader.services.errors import Conflict, Forbidden, NotFound
@@ -46,8 +47,8 @@ def _page(request: Request, session, user, row: Course, *, message: str | None =
 @router.get("/courses/{course}/dashboard", response_class=HTMLResponse)
 def dashboard_page(request: Request, row: StaffCourse, session: SessionDep, user: SignedIn, resent: int | None = None):
     message = None
-    run = session.get(CaseRun, resent) if resent and 0 < resent <= MAX_ID else None
-    if run is not None and run.submission.course_id == row.id:  # say what is true now, not what the URL claims
+    run = case_run_of(session, course=row, case_run_id=resent) if resent else None
+    if run is not None:  # say what is true now, not what the URL claims
         message = (f"Case run {run.id} ({run.name} of submission {run.submission_id}) was re-sent: "
                    f"now {run.status}, delivery {run.delivery} on the {run.backend} queue.")
     return _page(request, session, user, row, message=message)

@@ -8,15 +8,13 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Form, Request, status
 from fastapi.responses import HTMLResponse, RedirectResponse
-from sqlalchemy import select
 
 from grader.api.deps import SessionDep
 from grader.core import rubrics as store
-from grader.models import Regrade
 from grader.pages.auth import InstructorCourse, SignedIn, StaffCourse
 from grader.pages.errors import not_found as _not_found
 from grader.pages.templates import TEMPLATES
-from grader.services.regrade import commit_regrade, preview_regrade, record
+from grader.services.regrade import commit_regrade, preview_regrade, regrade_records, rubric_versions
 from rubric import ArchivedRubric
 
 router = APIRouter(include_in_schema=False)
@@ -26,10 +24,8 @@ router = APIRouter(include_in_schema=False)
 def rubrics_page(request: Request, row: StaffCourse, session: SessionDep, user: SignedIn, lesson: str = "L03"):
     if lesson not in ("L03",):
         return _not_found(request, user, f"rubrics of course {row.name} for lesson {lesson}")
-    versions = store.sync_shipped(session, lesson)
-    session.commit()
-    regrades = [record(r, row) for r in session.scalars(
-        select(Regrade).where(Regrade.course_id == row.id, Regrade.lesson == lesson).order_by(Regrade.id.desc()))]
+    versions = rubric_versions(session, lesson)
+    regrades = regrade_records(session, course=row, lesson=lesson)
     return TEMPLATES.TemplateResponse(request, "rubrics.html", {
         "user": user, "course": row.name, "lesson": lesson, "versions": versions, "regrades": regrades,
         "current": store.course_version(session, row.id, lesson)})

@@ -4,13 +4,14 @@ now, how a late attempt's penalty turns its raw score into the counted one, and 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 from functools import cache
 
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session, defer
 
+from grader.core.rubrics import current_grade
 from grader.core.states import AssignmentParts, Role
 from grader.core.timezones import iso
 from grader.models import Assignment, Course, Extension, Grade, Submission, User, utcnow
@@ -231,3 +232,46 @@ def grant_extension(*, session: Session, assignment: Assignment, student_name: s
     ext.granted_at = utcnow()
     session.commit()
     return ext
+
+
+# --- the instructor's view of an assignment -----------------------------------------------------------------------
+
+@dataclass
+class AttemptRow:
+    submission: Submission
+    late: str
+    counted: Counted | None  # None until graded
+    counts: bool
+
+
+@dataclass
+class StudentRow:
+    user: User
+    extension: Extension | None
+    attempts: list[AttemptRow] = field(default_factory=list)
+
+    @property
+    def counting(self) -> AttemptRow | None:
+        return next((a for a in self.attempts if a.counts), None)
+
+
+def students_view(*, session: Session, assignment: Assignment) -> list[StudentRow]:
+    """Every student of the course (and anyone else who submitted), by name, with their attempts in order."""
+    counting = {c.submission.student_id: c.submission.id
+                for c in counted_grades(session=session, assignment=assignment)}
+    extensions = {e.student_id: e for e in session.scalars(
+        select(Extension).where(Extension.assignment_id == assignment.id))}
+    attempts = attempts_by_student(session=session, assignment=assignment)
+    people = {u.id: u for u in session.scalars(select(User).where(User.course_id == assignment.course_id,
+                                                                  User.role == Role.STUDENT))}
+    people |= {subs[0].student_id: subs[0].student for subs in attempts.values()}
+    rows = []
+    for user in sorted(people.values(), key=lambda u: u.name):
+        row = StudentRow(user=user, extension=extensions.get(user.id))
+        for s in attempts.get(user.id, []):
+            grade = current_grade(session, s.id)
+            counted = counted_score(assignment, s, grade.total, grade.max_total) if grade else None
+            row.attempts.append(AttemptRow(submission=s, late=late_text(s.late_seconds), counted=counted,
+                                           counts=counting.get(user.id) == s.id))
+        rows.append(row)
+    return rows

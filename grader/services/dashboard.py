@@ -166,6 +166,12 @@ def _not_resendable(run: CaseRun, submission: Submission, has_grade: bool, now: 
     return None
 
 
+def case_run_of(session: Session, *, course: Course, case_run_id: int) -> CaseRun | None:
+    """A case run of the course's submissions, or None."""
+    run = session.get(CaseRun, case_run_id) if 0 < case_run_id <= MAX_ID else None
+    return run if run is not None and run.submission.course_id == course.id else None
+
+
 def resend_case_run(*, session: Session, case_run_id: int, user: User, sender: Sender) -> CaseRun:
     """An instructor of the run's course re-sends a failed or stuck case run (grader.core.lifecycle.resend): a new
     delivery on the same backend's queue, recorded in an event that names who did it and keeps the old error.

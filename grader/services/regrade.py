@@ -19,8 +19,8 @@ import rubric
 from grader.core import grading
 from grader.core.lab_check import lab_check
 from grader.core.lifecycle import stored_result
-from grader.core.rubrics import course_version, get_version
-from grader.models import Course, Grade, Regrade, Submission, User, utcnow
+from grader.core.rubrics import course_version, get_version, sync_shipped
+from grader.models import Course, Grade, Regrade, RubricVersion, Submission, User, utcnow
 from grader.schemas import UtcDateTime
 from grader.settings import settings
 from rubric.governance import report_changes, rubric_changes
@@ -193,3 +193,19 @@ def commit_regrade(session: Session, *, course: Course, lesson: str, version: st
         regrade.regraded += 1
     session.commit()
     return regrade, preview
+
+
+def regrade_records(session: Session, *, course: Course, lesson: str | None = None) -> list[RegradeRecord]:
+    """The course's committed regrades (of one lesson, or all), newest first, with who committed each and when."""
+    query = select(Regrade).where(Regrade.course_id == course.id)
+    if lesson is not None:
+        query = query.where(Regrade.lesson == lesson)
+    return [record(r, course) for r in session.scalars(query.order_by(Regrade.id.desc()))]
+
+
+def rubric_versions(session: Session, lesson: str) -> list[RubricVersion]:
+    """Every rubric version of the lesson the service knows, oldest first: the shipped ones are recorded on first
+    sight (commits), the published ones are there already."""
+    rows = sync_shipped(session, lesson)
+    session.commit()
+    return rows

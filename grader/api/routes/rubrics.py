@@ -9,18 +9,25 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, HTTPException, Path, Query, status
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
-from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 
 from grader.api.deps import CurrentUser, SessionDep, StaffCourse, StaffUser
 from grader.api.errors import error
 from grader.api.responses import errors
 from grader.core import rubrics as store
-from grader.models import Regrade, RubricVersion
+from grader.models import RubricVersion
 from grader.schemas import UtcDateTime
 from grader.services import access
 from grader.services.errors import field_errors
-from grader.services.regrade import RegradePreview, RegradeRecord, commit_regrade, preview_regrade, record
+from grader.services.regrade import (
+    RegradePreview,
+    RegradeRecord,
+    commit_regrade,
+    preview_regrade,
+    record,
+    regrade_records,
+    rubric_versions,
+)
 from rubric import ArchivedRubric
 from rubric.governance import RubricGovernanceError
 from rubric.specs import describe_errors
@@ -57,9 +64,7 @@ def _public(row: RubricVersion) -> RubricVersionPublic:
 @router.get("/rubrics/{lesson}/versions", response_model=list[RubricVersionPublic])
 def list_versions(lesson: Annotated[str, Path(pattern=LESSON)], session: SessionDep, user: StaffUser):
     """Every rubric version of a lesson the service knows, oldest first: shipped with it or published (staff)."""
-    rows = store.sync_shipped(session, lesson)
-    session.commit()
-    return [_public(r) for r in rows]
+    return [_public(r) for r in rubric_versions(session, lesson)]
 
 
 @router.post("/rubrics/versions", response_model=RubricVersionPublic, status_code=status.HTTP_201_CREATED,
@@ -121,5 +126,4 @@ def regrade_commit(row: StaffCourse, request: RegradeRequest, session: SessionDe
 @router.get("/courses/{course}/regrades", response_model=list[RegradeRecord], responses=errors(404))
 def regrades(row: StaffCourse, session: SessionDep):
     """Every committed regrade of the course, newest first, with who committed it and when."""
-    return [record(r, row) for r in session.scalars(
-        select(Regrade).where(Regrade.course_id == row.id).order_by(Regrade.id.desc()))]
+    return regrade_records(session, course=row)
