@@ -105,7 +105,7 @@ def _why(item_id: str, old_rubric, new_rubric, new_item) -> str:
             if b is not None and (a is None or (a.value, a.unit) != (b.value, b.unit)):
                 reasons.append(f"tolerance {name}: {f'{a.value:g} {a.unit}' if a else 'new'} -> {b.value:g} {b.unit}")
         if old_def.check != new_def.check:
-            reasons.append(f"check {old_def.check} -> {new_def.check}")
+            reasons.append(f"scoring rule {old_def.check} -> {new_def.check}")
     if new_item is not None:
         reasons.append(new_item.feedback)
     return "; ".join(reasons)

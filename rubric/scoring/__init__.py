@@ -6,7 +6,7 @@ hands_on.py: the hands-on exercise and the extension.
 
 from . import checkpoints, hands_on, part_a, part_b  # noqa: F401  (each module registers its checks)
 from .engine import (
-    CHECKS,
+    SCORING_RULES,
     LESSON_RUNS,
     SHEET_CASE_PREFIX,
     ArchivedRubric,
@@ -18,5 +18,5 @@ from .engine import (
     grade_sheet,
 )
 
-__all__ = ["CHECKS", "LESSON_RUNS", "SHEET_CASE_PREFIX", "ArchivedRubric", "GradeReport", "ItemGrade", "Verdict", "case_name",
+__all__ = ["SCORING_RULES", "LESSON_RUNS", "SHEET_CASE_PREFIX", "ArchivedRubric", "GradeReport", "ItemGrade", "Verdict", "case_name",
            "cases_to_run", "grade_sheet"]

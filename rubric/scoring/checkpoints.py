@@ -7,7 +7,7 @@ import numpy as np
 from ..cases import BASELINE_CASES, COLOR_SWAP
 from ..metrics import align, separation_mask
 from ..rubrics import Item
-from .engine import Context, Outcome, check, credit
+from .engine import Context, Outcome, credit, scoring_rule
 from .part_b import BASELINE, measured_color_effect, pair_disagreements, pair_of
 
 _RULES = {"max": max, "min": min, "mean": lambda a, b: (a + b) / 2, "product": lambda a, b: a * b}
@@ -28,12 +28,12 @@ def timing_outcome(ctx: Context, role: str, a) -> Outcome:
                    ctx.backends(role))
 
 
-@check("timing_n4")
+@scoring_rule("timing_n4")
 def timing_n4(ctx: Context, item: Item, a) -> Outcome:
     return timing_outcome(ctx, "N4", a)
 
 
-@check("equal_steps_invalid")
+@scoring_rule("equal_steps_invalid")
 def equal_steps_invalid(ctx: Context, item: Item, a) -> Outcome:
     n1, n3 = BASELINE_CASES["N1"], BASELINE_CASES["N3"]
     covered = n1.n_steps * n3.dt
@@ -42,7 +42,7 @@ def equal_steps_invalid(ctx: Context, item: Item, a) -> Outcome:
                    {"steps": n1.n_steps, "duration_at_dt_0.01_s": n1.n_steps * n1.dt, "duration_at_dt_0.02_s": covered})
 
 
-@check("shared_times")
+@scoring_rule("shared_times")
 def shared_times(ctx: Context, item: Item, a) -> Outcome:
     measured, evidence, backends = "", {}, {}
     r1, r4 = ctx.maybe(ctx.result, "N1"), ctx.maybe(ctx.result, "N4")
@@ -55,7 +55,7 @@ def shared_times(ctx: Context, item: Item, a) -> Outcome:
                    measured, evidence, backends)
 
 
-@check("zero_contact")
+@scoring_rule("zero_contact")
 def zero_contact(ctx: Context, item: Item, a) -> Outcome:
     evidence, backends = {}, {}
     for role in ("N1", "N2", "N3", "N4"):
@@ -74,7 +74,7 @@ def zero_contact(ctx: Context, item: Item, a) -> Outcome:
                    measured, evidence, backends)
 
 
-@check("pair_value_low")
+@scoring_rule("pair_value_low")
 def pair_value_low(ctx: Context, item: Item, a) -> Outcome:
     lanes = ctx.friction(BASELINE).lanes
     # The lesson's pair: table 0.50 with the cube of friction 0.10, found by the engine's own per-side values.
@@ -88,7 +88,7 @@ def pair_value_low(ctx: Context, item: Item, a) -> Outcome:
                    {"pair_friction": lane.pair_friction}, ctx.backends(BASELINE))
 
 
-@check("pair_rule")
+@scoring_rule("pair_rule")
 def pair_rule(ctx: Context, item: Item, a) -> Outcome:
     """The student's rule must reproduce every pair value the engine used in every measured friction run."""
     tol, rule = ctx.tol("pair_friction_abs"), _RULES[a.pair_rule]
@@ -108,7 +108,7 @@ def pair_rule(ctx: Context, item: Item, a) -> Outcome:
                    "; ".join(rows), {}, ctx.backends(*roles))
 
 
-@check("color_swap")
+@scoring_rule("color_swap")
 def color_swap(ctx: Context, item: Item, a) -> Outcome:
     effect, evidence, backends = measured_color_effect(ctx)
     if not effect.affects_results:
@@ -120,7 +120,7 @@ def color_swap(ctx: Context, item: Item, a) -> Outcome:
                    f"{BASELINE} re-run with the lane colours swapped: {effect.describe()}", evidence, backends)
 
 
-@check("one_sample_stop")
+@scoring_rule("one_sample_stop")
 def one_sample_stop(ctx: Context, item: Item, a) -> Outcome:
     parts, evidence, backends = [], {}, {}
     r = ctx.maybe(ctx.result, BASELINE)

@@ -181,12 +181,14 @@ class Context:
             return None
 
 
-CHECKS: dict[str, Callable[[Context, Item, object], Outcome]] = {}
+# Each rubric item names its scoring rule in its `check` field (the key stays: a version's content hash covers it).
+SCORING_RULES: dict[str, Callable[[Context, Item, object], Outcome]] = {}
 
 
-def check(name: str):
+def scoring_rule(name: str):
+    """Register a scoring rule under the name rubric items give in their `check` field."""
     def register(fn):
-        CHECKS[name] = fn
+        SCORING_RULES[name] = fn
         return fn
     return register
 
@@ -233,7 +235,7 @@ def _grade_item(ctx: Context, item: Item) -> ItemGrade:
     answer = getattr(ctx.sheet.answers, item.id)
     ctx.item = item
     try:
-        outcome = CHECKS[item.check](ctx, item, answer)
+        outcome = SCORING_RULES[item.check](ctx, item, answer)
     except ConfigViolation as exc:
         outcome = Outcome("one_factor_violation", "a one-factor config", str(exc))
     except NotMeasured as exc:

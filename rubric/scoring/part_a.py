@@ -5,12 +5,12 @@ from __future__ import annotations
 from ..metrics import align
 from ..relations import cases_agree, proxy_change
 from ..rubrics import Item
-from .engine import Context, NotMeasured, Outcome, check, credit, relation_verdict
+from .engine import Context, NotMeasured, Outcome, credit, relation_verdict, scoring_rule
 
 CONTACT_ROLES = ("N1", "N2", "N3", "N4")
 
 
-@check("sample_counts")
+@scoring_rule("sample_counts")
 def sample_counts(ctx: Context, item: Item, a) -> Outcome:
     counts = {role: len(ctx.result(role).arrays["t"]) for role in CONTACT_ROLES}
     want150 = sorted(role for role, n in counts.items() if n == 150)
@@ -21,7 +21,7 @@ def sample_counts(ctx: Context, item: Item, a) -> Outcome:
                    {f"{role}_samples": n for role, n in counts.items()}, ctx.backends(*CONTACT_ROLES))
 
 
-@check("proxy_direction")
+@scoring_rule("proxy_direction")
 def proxy_direction(ctx: Context, item: Item, a) -> Outcome:
     tol = ctx.tol("proxy_resolution")
     changes = [proxy_change(ctx.contact(coarse), ctx.contact(fine), tol) for coarse, fine in (("N1", "N2"), ("N3", "N4"))]
@@ -35,7 +35,7 @@ def proxy_direction(ctx: Context, item: Item, a) -> Outcome:
                    "; ".join(c.describe() for c in changes), evidence, ctx.backends(*CONTACT_ROLES))
 
 
-@check("n1_n4_agree")
+@scoring_rule("n1_n4_agree")
 def n1_n4_agree(ctx: Context, item: Item, a) -> Outcome:
     r1, r4 = ctx.result("N1"), ctx.result("N4")
     al = align("N1", r1.arrays, "N4", r4.arrays)
@@ -50,7 +50,7 @@ def n1_n4_agree(ctx: Context, item: Item, a) -> Outcome:
                    ctx.backends("N1", "N4"))
 
 
-@check("array_lengths")
+@scoring_rule("array_lengths")
 def array_lengths(ctx: Context, item: Item, a) -> Outcome:
     r1, r4 = ctx.result("N1"), ctx.result("N4")
     n1, n4 = len(r1.arrays["t"]), len(r4.arrays["t"])
@@ -62,7 +62,7 @@ def array_lengths(ctx: Context, item: Item, a) -> Outcome:
                    ctx.backends("N1", "N4"))
 
 
-@check("one_number")
+@scoring_rule("one_number")
 def one_number(ctx: Context, item: Item, a) -> Outcome:
     m1, m2 = ctx.maybe(ctx.contact, "N1"), ctx.maybe(ctx.contact, "N2")
     measured, evidence, backends = "no measured example available", {}, {}

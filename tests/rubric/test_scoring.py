@@ -12,7 +12,7 @@ import dataclasses
 
 from rubric import COLOR_SWAP, ArchivedRubric, CaseResult, cases_to_run, grade_sheet, load_rubric, parse_sheet
 from rubric.rubrics import Tolerance
-from rubric.scoring import CHECKS
+from rubric.scoring import SCORING_RULES
 from tests.factories import reference_sheet, two_lanes
 from worker import run_cases
 
@@ -79,7 +79,7 @@ def lost(report) -> set[str]:
 
 
 def test_every_rubric_check_is_implemented():
-    assert {item.check for item in load_rubric("L03").items} <= set(CHECKS)
+    assert {item.check for item in load_rubric("L03").items} <= set(SCORING_RULES)
 
 
 def test_cases_to_run_lists_baselines_and_the_sheets_configs_once():
