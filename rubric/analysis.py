@@ -13,7 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 from pydantic import BaseModel
 
-from .scoring.engine import GradeReport
+from .scoring.scorer import GradeReport
 
 TOP_WRONG_ANSWERS = 3
 

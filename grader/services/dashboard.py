@@ -216,7 +216,7 @@ RUN_CASES = {"baseline": "friction-baseline", "modified": "sheet.table_exercise"
 
 
 def _tolerance(text: str) -> float:
-    """A report's tolerance, stored as 'VALUE UNIT' (rubric.scoring.engine._tolerances), as a number in that unit."""
+    """A report's tolerance, stored as 'VALUE UNIT' (rubric.scoring.scorer._tolerances), as a number in that unit."""
     return float(text.split()[0])
 
 

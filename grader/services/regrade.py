@@ -24,7 +24,7 @@ from grader.models import Course, Grade, Regrade, RubricVersion, Submission, Use
 from grader.schemas import UtcDateTime
 from grader.settings import settings
 from rubric.governance import report_changes, rubric_changes
-from rubric.scoring.engine import ensure_gradable
+from rubric.scoring.scorer import ensure_gradable
 
 
 class ItemDiff(BaseModel):

@@ -5,7 +5,7 @@ hands_on.py: the hands-on exercise and the extension.
 """
 
 from . import checkpoints, hands_on, part_a, part_b  # noqa: F401  (each module registers its checks)
-from .engine import (
+from .scorer import (
     SCORING_RULES,
     LESSON_RUNS,
     SHEET_CASE_PREFIX,

@@ -7,7 +7,7 @@ import numpy as np
 from ..cases import BASELINE_CASES, COLOR_SWAP
 from ..metrics import align, separation_mask
 from ..rubrics import Item
-from .engine import Context, Outcome, credit, scoring_rule
+from .scorer import Context, Outcome, credit, scoring_rule
 from .part_b import BASELINE, measured_color_effect, pair_disagreements, pair_of
 
 _RULES = {"max": max, "min": min, "mean": lambda a, b: (a + b) / 2, "product": lambda a, b: a * b}

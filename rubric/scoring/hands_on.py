@@ -8,7 +8,7 @@ from ..metrics import ContactMetrics
 from ..relations import direction, proxy_change
 from ..rubrics import Item
 from .checkpoints import timing_outcome
-from .engine import Context, NotMeasured, Outcome, credit, relation_verdict, scoring_rule
+from .scorer import Context, NotMeasured, Outcome, credit, relation_verdict, scoring_rule
 from .part_b import BASELINE, describe_changes, engine_pairs, lane_changes, with_disagreements
 
 

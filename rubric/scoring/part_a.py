@@ -5,7 +5,7 @@ from __future__ import annotations
 from ..metrics import align
 from ..relations import cases_agree, proxy_change
 from ..rubrics import Item
-from .engine import Context, NotMeasured, Outcome, credit, relation_verdict, scoring_rule
+from .scorer import Context, NotMeasured, Outcome, credit, relation_verdict, scoring_rule
 
 CONTACT_ROLES = ("N1", "N2", "N3", "N4")
 

@@ -6,7 +6,7 @@ from ..cases import COLOR_SWAP
 from ..metrics import LaneMetrics
 from ..relations import ColorEffect, color_effect, direction, stop_change
 from ..rubrics import Item
-from .engine import Context, NotMeasured, Outcome, credit, relation_verdict, scoring_rule
+from .scorer import Context, NotMeasured, Outcome, credit, relation_verdict, scoring_rule
 
 BASELINE = "friction-baseline"
 

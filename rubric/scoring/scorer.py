@@ -1,12 +1,12 @@
-"""The scoring engine: grade a prediction sheet item by item against what the engine measured, under a rubric version.
+"""The scorer: grade a prediction sheet item by item against what Genesis measured, under a rubric version.
 
-Each item names a check (registered by the part modules of this package). A check returns an Outcome: the
+Each item names a scoring rule (registered by the part modules of this package). A rule returns an Outcome: the
 verdict, what was expected and the evidence with the backend of every run it read. Verdicts:
 - credit / no_credit: the prediction matches the expected answer, or not;
 - inconclusive: the measured difference is inside the reviewed tolerance (not counted either way);
 - one_factor_violation: a run the item compares comes from a config that changed more than one factor;
 - not_measured: a run the item needs failed or was never run (no credit, visible).
-A config fault voids only the items that read the run it concerns: a check that reads a role whose config broke
+A config fault voids only the items that read the run it concerns: a rule that reads a role whose config broke
 the one-factor rule is stopped there and says which config and why; every other item keeps its score.
 """
 
