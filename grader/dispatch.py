@@ -7,6 +7,7 @@ from grader.core.lifecycle import NEW_PRIORITY, REQUEUED_PRIORITY, RERUN_PRIORIT
 
 def send_case_run(case_run_id: int, delivery: int, backend: str, *, priority: int = NEW_PRIORITY) -> None:
     """Enqueue a case run on the queue of its requested backend: cpu, rocm or cuda, never another."""
+    # lazy: grader.main must not load Celery (test_the_api_never_imports_genesis_or_torch)
     from worker.celery_app import BACKEND_QUEUES, RUN_TASK, app
 
     if backend not in BACKEND_QUEUES:
@@ -15,6 +16,7 @@ def send_case_run(case_run_id: int, delivery: int, backend: str, *, priority: in
 
 
 def send_grade(submission_id: int) -> None:
+    # lazy: grader.main must not load Celery (test_the_api_never_imports_genesis_or_torch)
     from worker.celery_app import GRADE_QUEUE, GRADE_TASK, app
 
     app.send_task(GRADE_TASK, args=[submission_id], queue=GRADE_QUEUE)
@@ -45,8 +47,10 @@ def queue_listeners(queue: str, *, timeout_s: float = 1.0) -> list[str]:
 
 def queue_depths() -> dict[str, int | None]:
     """Messages waiting in each queue, asked of the broker (None for a queue the broker could not answer for)."""
+    # lazy: kombu is Celery's transport, loaded with it only when the broker is asked (never at API start)
     from kombu.exceptions import ChannelError
 
+    # lazy: grader.main must not load Celery (test_the_api_never_imports_genesis_or_torch)
     from worker.celery_app import BACKEND_QUEUES, GRADE_QUEUE, app
 
     depths: dict[str, int | None] = {}
@@ -64,6 +68,7 @@ def queue_depths() -> dict[str, int | None]:
 
 def live_workers(*, timeout_s: float = 1.0) -> dict[str, list[str]] | None:
     """Each answering worker's queues (remote control); None where the broker has no broadcast (embedded)."""
+    # lazy: grader.main must not load Celery (test_the_api_never_imports_genesis_or_torch)
     from worker.celery_app import app
 
     if str(app.conf.broker_url).startswith("filesystem"):
@@ -80,9 +85,11 @@ def broker_kept_marker() -> bool | None:
     restart without persistence lost every message since it was left; it is left again now); None when the broker
     cannot be asked. A broker emptied under load is noticed this way at once, even while new runs fill its queues.
     """
+    # lazy: kombu is Celery's transport, loaded with it only when the broker is asked (never at API start)
     from kombu.exceptions import ChannelError
 
     try:
+        # lazy: grader.main must not load Celery (test_the_api_never_imports_genesis_or_torch)
         from worker.celery_app import app
 
         with app.connection_for_write() as connection:
@@ -105,6 +112,7 @@ def held_tasks(*, timeout_s: float = 2.0) -> tuple[dict[str, set[tuple[int, int]
     """Liveness as the broker sees it: per answering worker, the (case_run_id, delivery) of the case runs it is
     running or holds prefetched; and the messages waiting per queue. None when not knowable (embedded broker, or the
     broker unreachable): the reconciler then falls back to leases."""
+    # lazy: grader.main must not load Celery (test_the_api_never_imports_genesis_or_torch)
     from worker.celery_app import RUN_TASK, app
 
     if str(app.conf.broker_url).startswith("filesystem"):

@@ -11,14 +11,17 @@ import json
 import os
 import signal
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
 
 import click
 
-from grader.reconcile import RECONCILE_EVERY_S
+from grader.client import Client, load_sheet
+from grader.core.db import migrate, new_session
+from grader.dispatch import EMBEDDED_QUEUES, resend
+from grader.reconcile import RECONCILE_EVERY_S, find_and_requeue
+from grader.services import accounts
 from grader.settings import settings
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -27,9 +30,6 @@ EXAMPLE_SHEET = ROOT / "examples" / "l03" / "reference.yaml"
 
 def bootstrap() -> dict[str, str]:
     """Migrate the embedded database and issue fresh tokens for a demo course (printed, never stored in clear)."""
-    from grader.services import accounts
-    from grader.core.db import migrate, new_session
-
     migrate()
     with new_session() as session:
         course = accounts.get_or_create_course(session=session, name="demo")
@@ -42,9 +42,8 @@ def bootstrap() -> dict[str, str]:
 def start_worker(log_path: Path) -> subprocess.Popen:
     env = dict(os.environ, DATA_DIR=str(settings.data_dir.absolute()), DATABASE_URL=settings.database_url,
                BROKER_URL=settings.broker_url, ARTIFACTS_DIR=str(settings.artifacts_dir))
+    # lazy: loads Celery and makes the filesystem broker's folders on import; `grader submit` imports this module too
     from worker.celery_app import worker_argv
-
-    from grader.dispatch import EMBEDDED_QUEUES
 
     command = worker_argv(EMBEDDED_QUEUES, name="embedded@%h", heartbeat=False)
     return subprocess.Popen(command, cwd=ROOT, env=env, stdout=log_path.open("ab"), stderr=subprocess.STDOUT,
@@ -52,7 +51,7 @@ def start_worker(log_path: Path) -> subprocess.Popen:
 
 
 def start_api(host: str, port: int):
-    import uvicorn
+    import uvicorn  # lazy: only `grader run` serves; `grader submit` imports this module for follow/summary
 
     server = uvicorn.Server(uvicorn.Config("grader.main:app", host=host, port=port, log_level="warning"))
     thread = threading.Thread(target=server.run, daemon=True)
@@ -65,10 +64,6 @@ def start_api(host: str, port: int):
 
 
 def reconcile_forever(stop: threading.Event) -> None:
-    from grader.core.db import new_session
-    from grader.dispatch import resend
-    from grader.reconcile import find_and_requeue
-
     while not stop.wait(RECONCILE_EVERY_S):
         with new_session() as session:
             resend(find_and_requeue(session=session))
@@ -123,8 +118,6 @@ def summary(client, submission_id: int, state: dict, url: str) -> Path:
 
 
 def run(*, host: str, port: int, sheet: Path, exit_after_grading: bool) -> int:
-    from grader.client import Client, load_sheet
-
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     click.echo(f"embedded service: database {settings.database_url}, broker {settings.broker_url}")
     tokens = bootstrap()

@@ -6,10 +6,12 @@ from __future__ import annotations
 
 from collections import Counter
 
+from prometheus_client.core import GaugeMetricFamily, HistogramMetricFamily
 from pydantic import BaseModel
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
+from grader import dispatch
 from grader.models import CaseRun, Grade, Submission, utcnow
 from grader.core import lifecycle
 from grader.core.states import CaseRunState
@@ -46,8 +48,6 @@ def failure_reason(run: CaseRun) -> str:
 
 
 def service_status(session: Session, *, timeout_s: float = 1.0) -> ServiceStatus:
-    from grader import dispatch
-
     broker_error = None
     try:
         queues, workers = dispatch.queue_depths(), dispatch.live_workers(timeout_s=timeout_s)
@@ -80,8 +80,6 @@ class StatusCollector:
         self.session_factory = session_factory
 
     def collect(self):
-        from prometheus_client.core import GaugeMetricFamily, HistogramMetricFamily
-
         with self.session_factory() as session:
             status = service_status(session)
         depth = GaugeMetricFamily("grader_queue_depth", "Messages waiting in a Celery queue", labels=["queue"])

@@ -15,8 +15,13 @@ from pathlib import Path
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from rubric import CaseResult, Provenance, parse_case
+from rubric.discrepancy import compare_cases, compare_relations, summarize
+from rubric.guards import provenance_violation
+
 from grader.core.audit import PROVENANCE_MARKERS, spec_key, variant
 from grader.core.lifecycle import stored_result
+from grader.core.rubrics import course_rubric
 from grader.models import AuditEntry, CaseRun
 from grader.settings import settings
 from grader.core.states import CaseRunState
@@ -60,10 +65,6 @@ def _pin_violation(session: Session, run: CaseRun) -> str | None:
     """A finished run whose provenance breaks what its course's rubric pins (rubric.guards), or None."""
     if run.status != CaseRunState.DONE or run.reused_from_id is not None or not run.provenance:
         return None
-    from grader.core.rubrics import course_rubric
-    from rubric import CaseResult, Provenance, parse_case
-    from rubric.guards import provenance_violation
-
     result = CaseResult(spec=parse_case(run.spec), status="ok", provenance=Provenance.model_validate(run.provenance))
     return provenance_violation(result, course_rubric(session, run.submission.course_id, run.submission.lesson))
 
@@ -91,8 +92,6 @@ def _course_of(run: CaseRun) -> int | None:
 
 
 def _entry(session: Session, left: CaseRun, right: CaseRun, *, requested_by_id: int | None = None) -> AuditEntry:
-    from rubric.discrepancy import compare_cases
-
     base = dict(course_id=_course_of(left), lesson=left.submission.lesson, case=left.name, spec_key=left.spec_key
                 or spec_key(left.spec), spec=left.spec, left_case_run_id=left.id, right_case_run_id=right.id,
                 left_variant=variant(left), right_variant=variant(right), left_provenance=left.provenance,
@@ -129,8 +128,6 @@ def _variant_set(session: Session, run: CaseRun) -> dict:
 def with_set_relations(comparison, left: dict, right: dict):
     """The comparison with the lesson's relations between cases that both variants can now judge (rubric.discrepancy
     compare_relations) added; a relation that changed makes the entry relation_changed."""
-    from rubric.discrepancy import compare_relations, summarize
-
     extra = [r for r in compare_relations(left, right) if r.id not in {x.id for x in comparison.relations}]
     if not extra:
         return comparison
@@ -150,6 +147,7 @@ def _violation_entry(session: Session, run: CaseRun, reason: str | None) -> Audi
 
 
 def _draw(a, b, comparison, folder: Path) -> list[str]:
+    # lazy: matplotlib (~0.7 s) loads only when an audit draws, not in every Celery worker (bench memory target)
     from worker.figures.audit import draw_comparison
 
     try:

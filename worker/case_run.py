@@ -13,6 +13,8 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from rubric import parse_case
+
 from grader.core import lifecycle
 from grader.models import CaseRun, Measurement
 from grader.settings import settings
@@ -38,8 +40,6 @@ def process_case_run(*, session: Session, case_run_id: int, delivery: int, run_c
     if measurement is not None:
         return run.submission_id if lifecycle.store_reused(session=session, run=run, measurement=measurement) else None
     session.commit()
-    from rubric import parse_case
-
     out_dir = Path(settings.artifacts_dir) / "case-runs" / str(run.id) / f"try-{run.tries}"
     result = run_case(parse_case(run.spec), out_dir, **({"mode": run.mode} if run.mode else {}))
     stored = lifecycle.store_result(session=session, run=run, result=result, key_inputs=key_inputs)

@@ -14,6 +14,7 @@ import sys
 import time
 from collections import OrderedDict
 from dataclasses import dataclass
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +37,7 @@ def ensure_genesis(backend: str, precision: str, seed: int):
     t0 = time.perf_counter()
     if _state["key"] is None:
         remove_stale_lock()
-    import genesis as gs
+    import genesis as gs  # lazy: only inside a case process, after the stale lock is gone; timed as import_s
 
     if _state["key"] is None:
         _state["import_s"] = time.perf_counter() - t0
@@ -67,6 +68,7 @@ def ensure_genesis(backend: str, precision: str, seed: int):
 
 def verify_backend(requested: str) -> None:
     """Fail visibly unless the initialised backend is the requested one (and ROCm really is a HIP build)."""
+    # lazy: Genesis and torch load only inside a case process, never in a parent importing this module
     import genesis as gs
     import torch
 
@@ -369,12 +371,13 @@ def simulate_friction(gs, spec: FrictionCase, *, reuse: bool = False):
 
 
 def _provenance(spec, mode: str, timings: dict, discretization: dict, rendering: dict, exit_status: int) -> dict:
+    # lazy: Genesis and torch load only inside a case process, never in a parent importing this module
     import genesis as gs
     import torch
 
     device = gs.device
     if "device_name" not in _state:
-        from genesis.utils.misc import get_device
+        from genesis.utils.misc import get_device  # lazy: Genesis only inside a case process
 
         # Genesis's own probe: the CPU brand string on cpu, the device properties' name on a GPU.
         _state["device_name"] = str(get_device(gs.backend)[1])
@@ -409,8 +412,6 @@ def _provenance(spec, mode: str, timings: dict, discretization: dict, rendering:
 
 
 def _dist_version(name: str) -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
     try:
         return version(name)
     except PackageNotFoundError:

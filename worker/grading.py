@@ -108,6 +108,7 @@ def draw_figures(submission_id: int, results: dict) -> tuple[str, list]:
     or changes the grade: it is recorded (the returned note becomes an event) and the pages show no figures.
     Returns the note and the paths drawn.
     """
+    # lazy: matplotlib (~0.7 s) loads only when figures are drawn, not in every Celery worker (bench memory target)
     from worker.figures import FigureCache, lab_figures
 
     folder = settings.figures_dir(submission_id)

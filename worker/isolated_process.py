@@ -3,6 +3,7 @@
 The lesson's way, one fresh process per case; used for audits.
 """
 
+import json
 import sys
 from pathlib import Path
 
@@ -11,10 +12,8 @@ from rubric import parse_case
 
 def main(argv: list[str]) -> int:
     spec_path, out_dir = Path(argv[0]), Path(argv[1])
-    import json
-
     spec = parse_case(json.loads(spec_path.read_text()))
-    from .engine import run_case_in_genesis
+    from .engine import run_case_in_genesis  # lazy: worker.engine is imported only when a case process runs a case
 
     return run_case_in_genesis(spec, out_dir, mode="isolated")
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from grader.settings import settings
+from worker.case_process import WarmCaseProcess, run_case
 
 _warm_process = None
 
@@ -18,8 +19,6 @@ def run_case_in_slot(spec, out_dir: Path, mode: str | None = None):
     """Run one case in this slot's warm case process, or isolated: `mode` when a run asks for one (an audit re-run),
     else the worker's setting. Always returns a CaseResult."""
     global _warm_process
-    from worker.case_process import run_case
-
     mode = mode or settings.execution_mode
     if mode == "warm" and _warm_process is None:
         _warm_process = _new_warm_process()
@@ -28,8 +27,6 @@ def run_case_in_slot(spec, out_dir: Path, mode: str | None = None):
 
 
 def _new_warm_process():
-    from worker.case_process import WarmCaseProcess
-
     backend = None if settings.warm_up_backend == "off" else settings.warm_up_backend
     return WarmCaseProcess(max_cases=settings.warm_max_cases, reuse_scenes=settings.scene_reuse,
                            warm_up_backend=backend)

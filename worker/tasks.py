@@ -10,11 +10,14 @@ import logging
 from celery.signals import worker_init, worker_process_init, worker_process_shutdown
 from kombu.exceptions import OperationalError as BrokerError
 from sqlalchemy.exc import OperationalError as DatabaseError
+from sqlalchemy.orm import Session
 
 from grader.core import lifecycle
-from grader.core.db import new_session
+from grader.core.db import make_engine, new_session
 from grader.settings import settings
-from worker import slot
+from worker import grading, slot
+from worker.audit import audit_finished_run
+from worker.case_run import process_case_run
 from worker.celery_app import FIGURES_QUEUE, GRADE_QUEUE, app
 
 INFRA_ERRORS = (DatabaseError, BrokerError, OSError)
@@ -24,9 +27,6 @@ RETRY = dict(autoretry_for=INFRA_ERRORS, max_retries=settings.max_infra_retries,
 
 @app.task(name="worker.tasks.run_case_run", **RETRY)
 def run_case_run(case_run_id: int, delivery: int) -> None:
-    from worker.audit import audit_finished_run
-    from worker.case_run import process_case_run
-
     with new_session() as session:
         to_grade = process_case_run(session=session, case_run_id=case_run_id, delivery=delivery,
                                     run_case=slot.run_case_in_slot)
@@ -41,20 +41,16 @@ def grade_submission(submission_id: int) -> None:
     """Store the grade, then send its completion (figures and lab check) behind the waiting case runs. Sent even when
     the grade was stored already: a redelivery after a crash, or the reconciler re-sending the grade task for a grade
     left incomplete, must still get it completed (completing twice is a no-op)."""
-    from worker.grading import grade_submission as grade
-
     with new_session() as session:
-        grade(session=session, submission_id=submission_id)
+        grading.grade_submission(session=session, submission_id=submission_id)
     complete_grade.apply_async(args=[submission_id], queue=FIGURES_QUEUE, priority=lifecycle.FIGURES_PRIORITY)
 
 
 @app.task(name="worker.tasks.complete_grade", **RETRY)
 def complete_grade(submission_id: int) -> None:
     """Draw the figures of a stored grade and add its lab check (worker.grading.complete_grade), once."""
-    from worker.grading import complete_grade as complete
-
     with new_session() as session:
-        complete(session=session, submission_id=submission_id)
+        grading.complete_grade(session=session, submission_id=submission_id)
 
 
 @worker_process_shutdown.connect
@@ -72,10 +68,6 @@ def _rerun_what_died_here(**_) -> None:
     """A worker starting where a worker was killed first re-sends the runs the dead processes held, ahead of the
     queue: the killed case is this worker's first, instead of waiting for the reconciler's next pass while the
     worker starts something else (whose warm case process alone takes tens of seconds)."""
-    from sqlalchemy.orm import Session
-
-    from grader.core.db import make_engine
-
     engine = make_engine(settings.database_url)  # its own: the pool processes forked next must inherit no connection
     try:
         with Session(engine) as session:

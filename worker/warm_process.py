@@ -11,10 +11,15 @@ import json
 import os
 import signal
 import sys
+import tempfile
+import time
 import traceback
 from pathlib import Path
 
 from rubric import parse_case
+from rubric.cases import BASELINE_CASES
+
+from .errors import EXIT_ERROR
 
 
 def _redirect(stdout_path: str, stderr_path: str) -> None:
@@ -43,11 +48,7 @@ def warm_up(backend: str, reuse: bool) -> None:
     Genesis imported and initialised, kernels loaded, and (with reuse) both scenes kept for the first cases. What it
     did, or why it failed, goes to its stderr, the worker's own log (one WARM_UP_DONE line); a real case never
     depends on it."""
-    import tempfile
-    import time
-
-    from rubric.cases import BASELINE_CASES
-
+    # lazy: worker.engine only inside the case process; parents import this module for WARM_UP_DONE
     from .engine import run_case_in_genesis
 
     started = time.perf_counter()
@@ -69,8 +70,8 @@ def warm_up(backend: str, reuse: bool) -> None:
 
 def main(reply_fd: int, warm_up_backend: str | None = None, reuse: bool = False) -> int:
     signal.signal(signal.SIGTERM, _exit_on_sigterm)
+    # lazy: worker.engine only inside the case process; parents import this module for WARM_UP_DONE
     from .engine import run_case_in_genesis
-    from .errors import EXIT_ERROR
 
     if warm_up_backend:
         warm_up(warm_up_backend, reuse)

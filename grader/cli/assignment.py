@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from datetime import datetime
 from pathlib import Path
 
 import click
 
 from grader.core.states import AssignmentParts, Visibility, values
+from grader.core.timezones import local
 
 from grader.cli.rubric import TOKEN, URL, _call, _client
 
@@ -26,10 +28,6 @@ def _item_visibility(ctx, param, values: tuple[str, ...]) -> dict[str, str]:
 
 def _in_zone(client, course: str):
     """ISO times from the API (UTC) -> as the course shows them ('2026-12-08 10:00 CET')."""
-    from datetime import datetime
-
-    from grader.core.timezones import local
-
     zone = _call(client.course, course)["timezone"]
     return lambda iso: local(datetime.fromisoformat(iso.replace("Z", "+00:00")), zone)
 

@@ -12,6 +12,7 @@ from grader.core.states import ExecutionMode, values
 from pydantic import TypeAdapter, ValidationError
 
 from rubric import BASELINE_CASES, CaseSpec, describe_errors, get_case, parse_case
+from worker import run_case
 
 
 @click.group()
@@ -62,8 +63,6 @@ def load_spec_file(path: Path):
 @click.option("--mode", type=click.Choice(values(ExecutionMode)), default="isolated", show_default=True)
 def run(spec_file: Path, out_dir: Path, mode: str) -> None:
     """Run one case spec on real Genesis and keep its evidence in OUT."""
-    from worker import run_case
-
     spec = load_spec_file(spec_file)
     click.echo(f"running {spec.name} ({spec.kind}, backend={spec.backend}, {spec.n_steps} steps, mode={mode}) ...")
     result = run_case(spec, out_dir, mode=mode)

@@ -15,6 +15,7 @@ from rubric import CHECK_CASES, CaseResult
 from rubric.check import OutputLocation, check_cases, evaluate
 
 from grader.check_report import write_check_report
+from worker import run_cases
 
 from .case import load_spec_file
 
@@ -44,8 +45,7 @@ def run_check(
     *, backend: str, render: bool, mode: str, jobs: int, out_dir: Path, overrides: list[Path], echo=click.echo
 ):
     """Run the check's cases, write figures and reports into out_dir, return (CheckReport, results)."""
-    from worker import run_cases
-    from worker.figures import lab_figures
+    from worker.figures import lab_figures  # lazy: matplotlib (~0.7 s) only for `grader check`, not `grader --help`
 
     specs = {spec.name: spec for spec in check_cases(backend=backend, render=render)}
     for path in overrides:

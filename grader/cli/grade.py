@@ -15,6 +15,7 @@ from pydantic import ValidationError
 
 from rubric import cases_to_run, describe_errors, grade_sheet, load_rubric, one_factor_findings, parse_sheet
 from rubric.exports import grades_csv, gradescope_results
+from worker import run_cases
 
 CONFIG_SUFFIXES = (".yaml", ".yml", ".json")
 EXIT_INCOMPLETE = 2
@@ -22,8 +23,6 @@ EXIT_INCOMPLETE = 2
 
 def run_cases_locally(specs, out_root: Path, mode: str, progress) -> dict:
     """Run cases in case processes on this machine (the one expensive dependency; tests replace this function)."""
-    from worker import run_cases
-
     return run_cases(specs, out_root, mode=mode, progress=progress)
 
 

@@ -14,7 +14,7 @@ LESSON = click.option("--lesson", default="L03", show_default=True)
 
 
 def _client(url: str, token: str):
-    from grader.client import Client
+    from grader.client import Client  # lazy: httpx (~0.1 s) only for the HTTP commands, not `grader --help`
 
     return Client(url, token)
 

@@ -48,6 +48,7 @@ def new_session() -> Session:
 
 def migrate(url: str | None = None) -> None:
     """Bring the schema to the newest Alembic revision."""
+    # lazy: Alembic (~0.3 s) only for migrations; the API, every worker and the CLI import this module without it
     from alembic import command
     from alembic.config import Config
 

@@ -13,9 +13,13 @@ from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from sqlalchemy import func, null, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
+
+from rubric import CaseResult, Provenance, parse_case
+from rubric.metrics import parse_metrics
 
 from grader.models import CaseRun, Event, Grade, Measurement, Submission, utcnow
 from grader.settings import settings
@@ -251,11 +255,6 @@ def touch(submission: Submission, state: str, detail: str | None = None, *, sess
 
 def stored_result(run: CaseRun):
     """The CaseResult a case run stands for, read back from its stored provenance and .npz arrays."""
-    import numpy as np
-
-    from rubric import CaseResult, Provenance, parse_case
-    from rubric.metrics import parse_metrics
-
     spec = parse_case(run.spec)
     provenance = Provenance.model_validate(run.provenance) if run.provenance else None
     if run.status != CaseRunState.DONE or run.result_status != "ok":

@@ -11,6 +11,9 @@ from __future__ import annotations
 from sqlalchemy import select
 from sqlalchemy.orm import Session, defer
 
+from rubric.governance import publish_version
+from rubric.rubrics import load_rubric, parse_rubric, rubric_versions, version_key
+
 from grader.models import Grade, Regrade, RubricVersion, User, utcnow
 
 
@@ -34,8 +37,6 @@ _PARSED: dict[tuple[str, str, str], object] = {}
 
 def _row_rubric(row: RubricVersion):
     """The row's Rubric (frozen; shared between callers, who must not change its lists)."""
-    from rubric.rubrics import parse_rubric
-
     key = (row.lesson, row.version, row.content_hash)
     if key in _PARSED:
         return _PARSED[key]
@@ -53,9 +54,6 @@ def sync_shipped(session: Session, lesson: str) -> list[RubricVersion]:
     A shipped file whose content differs from its recorded row is refused by governance when any grade used that
     version (a used version is immutable) and otherwise replaces the row.
     """
-    from rubric.governance import publish_version
-    from rubric.rubrics import load_rubric, rubric_versions, version_key
-
     rows = {r.version: r for r in session.scalars(select(RubricVersion).where(RubricVersion.lesson == lesson))}
     for version in rubric_versions(lesson):
         shipped = load_rubric(lesson, version)
@@ -98,9 +96,6 @@ def publish(session: Session, *, content: dict, user: User) -> RubricVersion:
     """Record a new rubric version published by `user` (flushes). Raises pydantic's ValidationError for a malformed
     rubric and rubric.governance.RubricGovernanceError for one governance refuses (a used version changed, a
     changed tolerance without a new review). Republishing identical content returns the existing row."""
-    from rubric.governance import publish_version
-    from rubric.rubrics import parse_rubric
-
     new = parse_rubric(content)
     rows = sync_shipped(session, new.lesson)
     accepted = publish_version(new, [_row_rubric(r) for r in rows], used_versions(session, new.lesson))
@@ -121,8 +116,6 @@ def publish(session: Session, *, content: dict, user: User) -> RubricVersion:
 
 def course_version(session: Session, course_id: int, lesson: str) -> str:
     """The rubric version a course grades `lesson` under: its latest committed regrade's, else the newest shipped."""
-    from rubric.rubrics import rubric_versions
-
     committed = session.scalar(select(Regrade.version).where(Regrade.course_id == course_id, Regrade.lesson == lesson)
                                .order_by(Regrade.id.desc()).limit(1))
     if committed is not None:

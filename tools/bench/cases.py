@@ -8,6 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from rubric import get_case
+from worker import WarmCaseProcess, run_case
 
 # isolated: a new process per case; warm: one long-lived process, a new scene per case; reused: one long-lived
 # process resetting a scene built for the same structure. Batched environments are off (tools/batched_envs_check.py).
@@ -20,8 +21,6 @@ class BenchFailure(RuntimeError):
 
 def bench_cases(case_names: list[str], repeats: int, out_dir: Path, log: Callable[[str], None] = print) -> dict:
     """Time each case in every mode, interleaved so machine noise hits all alike. Returns the figures as a dict."""
-    from worker import WarmCaseProcess, run_case
-
     specs = [get_case(name) for name in case_names]
     wall = {(s.name, m): [] for s in specs for m in MODES}
     steps = {s.name: [] for s in specs}

@@ -5,12 +5,17 @@ stored grade on one CPU worker."""
 from __future__ import annotations
 
 import copy
+import json
 import time
 from collections.abc import Callable
 from datetime import UTC, datetime
 
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
+
+from grader.models import Grade, Submission
+from grader.settings import settings
+from worker.warm_process import WARM_UP_DONE
 
 from tools.bench.cases import BenchFailure
 from tools.bench.submission import WAIT_LIMIT_S, reference_sheet
@@ -46,8 +51,6 @@ def class_sheets(students: list[str]) -> list[dict]:
 
 def distinct_configs(sheets: list[dict]) -> int:
     """How many distinct modified configs (one-factor ones) the sheets carry."""
-    import json
-
     seen = set()
     for sheet in sheets:
         table = sheet["configs"]["table_exercise"]["table"]
@@ -61,8 +64,6 @@ def distinct_configs(sheets: list[dict]) -> int:
 def _finished(engine) -> tuple[int, int, int, datetime | None, datetime | None]:
     """(graded, failed, grades whose figures and lab check are still being drawn, last grade stored, last grade
     completed)."""
-    from grader.models import Grade, Submission
-
     with Session(engine) as session:
         rows = dict(session.execute(select(Submission.status, func.count()).group_by(Submission.status)).all())
         last = session.scalar(select(func.max(Submission.graded_at)))
@@ -78,9 +79,6 @@ def wait_until_warm(stack, log: Callable[[str], None] = print) -> float | None:
     """Wait until the worker's case process has warmed up (settings.warm_up_backend): its line in the worker's log.
     A deadline finds workers that have been up for a while; the class is timed from there. Returns the seconds
     waited (None: warm-up off)."""
-    from grader.settings import settings
-    from worker.warm_process import WARM_UP_DONE
-
     if settings.warm_up_backend == "off":  # the stack's worker inherits this environment: nothing to wait for
         log("  warm-up off (WARM_UP_BACKEND=off): the case process starts on the first case")
         return None

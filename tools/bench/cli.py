@@ -14,6 +14,10 @@ from pathlib import Path
 
 import click
 
+from tools.bench import run
+from tools.bench.cases import BenchFailure
+from tools.bench.stack import ServiceUnavailable
+
 PARTS = ("cases", "submission", "class", "memory", "api")
 # --quick: the same measurements, smaller, in a few minutes.
 FULL = {"cases": "N1,N2,N3,N4,N5", "repeats": 3, "class_size": 200, "memory_cases": 500, "api_requests": 20}
@@ -49,12 +53,8 @@ def bench(quick: bool, only: str, cases: str | None, repeats: int | None, class_
           memory_cases: int | None, api_clients: int, api_stacks: str, api_think: str, out_dir: Path,
           json_path: Path | None) -> None:
     """Measure, print a table per part with the targets met or missed, and write the figures as JSON."""
-    from tools.bench.cases import BenchFailure
-    from tools.bench.run import BenchOptions, run_bench
-    from tools.bench.stack import ServiceUnavailable
-
     size = QUICK if quick else FULL
-    options = BenchOptions(
+    options = run.BenchOptions(
         parts=_parts(only), cases=[c.strip() for c in (cases or size["cases"]).split(",")],
         repeats=repeats or size["repeats"], class_size=class_size or size["class_size"],
         class_stacks=[s.strip() for s in class_stacks.split(",")], memory_cases=memory_cases or size["memory_cases"],
@@ -73,7 +73,7 @@ def bench(quick: bool, only: str, cases: str | None, repeats: int | None, class_
         json_path.write_text(json.dumps(report, indent=2, default=str))
 
     try:
-        tables = run_bench(options, save=save, log=lambda line: click.echo(line, err=True))
+        tables = run.run_bench(options, save=save, log=lambda line: click.echo(line, err=True))
     except (BenchFailure, ServiceUnavailable) as exc:
         raise click.ClickException(f"{exc} (figures so far in {json_path})") from exc
     click.echo("")

@@ -5,8 +5,11 @@ the service's worst case) or each reader pausing `think_s` between reads, like a
 from __future__ import annotations
 
 import asyncio
+import random
 import time
 from collections.abc import Callable
+
+import httpx
 
 from tools.bench.stats import latency_summary
 
@@ -16,10 +19,6 @@ PATHS = ("/v1/submissions/{id}", "/submissions/{id}")
 
 async def _client(url: str, token: str, paths: list[str], requests: int, latencies: dict, errors: list,
                   think_s: float = 0.0) -> None:
-    import random
-
-    import httpx
-
     async with httpx.AsyncClient(base_url=url, headers={"Authorization": f"Bearer {token}"}, timeout=60) as http:
         await asyncio.sleep(random.uniform(0, think_s))  # readers do not all start on the same tick
         for i in range(requests):

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import psutil
+
 from tools.bench.stats import growth_pct
 from tools.bench.submission import reference_sheet, time_submission
 
@@ -13,8 +15,6 @@ MB = 1024 * 1024
 
 def worker_rss(pid: int) -> dict[str, float]:
     """RSS in MB of pid and each of its descendants, by 'pid name'."""
-    import psutil
-
     root = psutil.Process(pid)
     out = {}
     for proc in (root, *root.children(recursive=True)):

@@ -14,6 +14,8 @@ import uuid
 from collections.abc import Callable
 from pathlib import Path
 
+import httpx
+
 ROOT = Path(__file__).resolve().parent.parent.parent
 # Safety stop for waits on real processes; never a claim about speed.
 STARTUP_LIMIT_S = 120
@@ -39,6 +41,7 @@ def wait_for(predicate: Callable[[], bool], what: str, proc: subprocess.Popen, l
 
 def start_worker(env: dict, queues: str, log: Path) -> subprocess.Popen:
     """A real Celery worker process (prefork, one slot), returned once it says it is ready."""
+    # lazy: worker.celery_app loads Celery and makes filesystem-broker folders on import; only start_worker needs it
     from worker.celery_app import worker_argv
 
     command = worker_argv(queues.split(","), name=f"{queues.replace(',', '-')}-{uuid.uuid4().hex[:6]}@%h",
@@ -51,8 +54,6 @@ def start_worker(env: dict, queues: str, log: Path) -> subprocess.Popen:
 
 def start_api(env: dict, port: int, log: Path) -> subprocess.Popen:
     """The API under uvicorn on 127.0.0.1:port, returned once /v1/health answers 200."""
-    import httpx
-
     proc = subprocess.Popen([sys.executable, "-m", "uvicorn", "grader.main:app", "--host", "127.0.0.1",
                              "--port", str(port), "--log-level", "warning"], cwd=ROOT, env=env,
                             stdout=log.open("ab"), stderr=subprocess.STDOUT, start_new_session=True)

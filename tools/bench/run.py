@@ -8,6 +8,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from tools.bench import tables
+from tools.bench.cases import bench_cases, format_cases
+from tools.bench.classroom import bench_class
+from tools.bench.load import bench_api
+from tools.bench.memory import bench_memory
+from tools.bench.stack import service_stack
+from tools.bench.submission import bench_submission, reference_sheet, time_submission
 
 
 @dataclass
@@ -28,8 +34,6 @@ class BenchOptions:
 
 def _graded_submission(stack) -> tuple[int, str]:
     """A graded submission to read (the reference sheet), and who may read it."""
-    from tools.bench.submission import reference_sheet, time_submission
-
     who = stack.students[0]
     state = time_submission(stack.client(who), reference_sheet(), worker=stack.worker).state
     return state["id"], who
@@ -43,13 +47,6 @@ def _api(stack, o: BenchOptions, bench_api, log) -> list[dict]:
 
 
 def run_bench(o: BenchOptions, *, save: Callable[[str, object], None], log: Callable[[str], None]) -> list[str]:
-    from tools.bench.cases import bench_cases, format_cases
-    from tools.bench.classroom import bench_class
-    from tools.bench.load import bench_api
-    from tools.bench.memory import bench_memory
-    from tools.bench.stack import service_stack
-    from tools.bench.submission import bench_submission
-
     out: list[str] = []
     services = o.out_dir / "services"
     if "cases" in o.parts:

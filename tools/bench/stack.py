@@ -10,6 +10,14 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import redis
+from sqlalchemy import create_engine, text
+from sqlalchemy.orm import Session
+
+from grader.client import Client
+from grader.core.db import make_engine, migrate
+from grader.services import accounts
+
 from tools.bench.processes import ROOT, free_port, start_api, start_worker, stop
 
 KINDS = ("embedded", "redis-pg")
@@ -25,8 +33,6 @@ class ServiceUnavailable(RuntimeError):
 @contextlib.contextmanager
 def postgres_database(admin_url: str = PG_ADMIN_URL, *, prefix: str = "grader_bench") -> Iterator[str]:
     """A uniquely named database on admin_url's server, dropped afterwards; yields its URL."""
-    from sqlalchemy import create_engine, text
-
     name = f"{prefix}_{uuid.uuid4().hex[:12]}"
     admin = create_engine(admin_url, isolation_level="AUTOCOMMIT")
     try:
@@ -46,8 +52,6 @@ def postgres_database(admin_url: str = PG_ADMIN_URL, *, prefix: str = "grader_be
 @contextlib.contextmanager
 def redis_db(url: str = REDIS_URL) -> Iterator[str]:
     """The Redis db at url, flushed before and after (the benchmark owns it while it runs)."""
-    import redis
-
     client = redis.Redis.from_url(url)
     try:
         client.ping()
@@ -75,16 +79,10 @@ class Stack:
     students: list[str] = field(default_factory=list)
 
     def client(self, who: str):
-        from grader.client import Client
-
         return Client(self.url, self.tokens[who], timeout=120)
 
 
 def _people(engine, students: int) -> tuple[dict[str, str], list[str]]:
-    from sqlalchemy.orm import Session
-
-    from grader.services import accounts
-
     names = [f"s{i:03d}" for i in range(students)]
     with Session(engine) as session:
         course = accounts.get_or_create_course(session=session, name=COURSE)
@@ -99,8 +97,6 @@ def _people(engine, students: int) -> tuple[dict[str, str], list[str]]:
 @contextlib.contextmanager
 def service_stack(kind: str, folder: Path, *, students: int = 1) -> Iterator[Stack]:
     """Start the API and one CPU worker (`cpu,grade` queues) over `kind`'s database and broker; stop them after."""
-    from grader.core.db import make_engine, migrate
-
     if kind not in KINDS:
         raise ValueError(f"unknown stack {kind!r}; one of {', '.join(KINDS)}")
     data_dir = (folder / f"{kind}-{uuid.uuid4().hex[:6]}").absolute()

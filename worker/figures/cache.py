@@ -15,14 +15,14 @@ import shutil
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import matplotlib
+
 from rubric import CaseResult
 
 _PACKAGE = Path(__file__).parent
 
 
 def _code_digest() -> str:
-    import matplotlib
-
     digest = hashlib.sha256(matplotlib.__version__.encode())
     for source in sorted(_PACKAGE.glob("*.py")):
         digest.update(source.name.encode())
