@@ -12,6 +12,8 @@ from typing import Any
 from sqlalchemy import JSON, Boolean, DateTime, Float, ForeignKey, Index, Integer, String, Text, UniqueConstraint, text
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
+from grader.core.states import CaseRunPurpose, CaseRunState, SubmissionState
+
 # The values of role, status, purpose, part, counted_attempt and visibility columns are grader.core.states' enums.
 
 
@@ -124,7 +126,7 @@ class Submission(Base):
     lesson: Mapped[str] = mapped_column(String(16))
     sheet: Mapped[dict[str, Any]]
     force_rerun: Mapped[bool] = mapped_column(Boolean, default=False)
-    status: Mapped[str] = mapped_column(String(16), default="running")
+    status: Mapped[str] = mapped_column(String(16), default=SubmissionState.RUNNING.value)
     error: Mapped[str | None] = mapped_column(Text)
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
@@ -165,7 +167,7 @@ class CaseRun(Base):
     backend: Mapped[str] = mapped_column(String(8), index=True)
     precision: Mapped[str] = mapped_column(String(4))
     spec: Mapped[dict[str, Any]]
-    status: Mapped[str] = mapped_column(String(16), default="queued", index=True)
+    status: Mapped[str] = mapped_column(String(16), default=CaseRunState.QUEUED.value, index=True)
     delivery: Mapped[int] = mapped_column(Integer, default=1)
     tries: Mapped[int] = mapped_column(Integer, default=0)
     content_key: Mapped[str | None] = mapped_column(String(64), index=True)
@@ -184,7 +186,8 @@ class CaseRun(Base):
     worker_pid: Mapped[int | None] = mapped_column(Integer)
     # "grading" runs decide a submission's grade; "audit" runs re-measure another run on another backend, precision
     # or execution mode for the discrepancy log and never touch a grade.
-    purpose: Mapped[str] = mapped_column(String(16), default="grading", server_default="grading")
+    purpose: Mapped[str] = mapped_column(String(16), default=CaseRunPurpose.GRADING.value,
+                                         server_default=CaseRunPurpose.GRADING.value)
     mode: Mapped[str | None] = mapped_column(String(16))  # requested execution mode; None: the worker's setting
     source_case_run_id: Mapped[int | None] = mapped_column(ForeignKey("case_runs.id"))  # what an audit run re-measures
     requested_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))

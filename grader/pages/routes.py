@@ -7,12 +7,12 @@ anything a caller may not read is a 404 page that reveals nothing. Every asset i
 
 from __future__ import annotations
 
-
 from fastapi import APIRouter, Form, Request, status
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, PlainTextResponse, RedirectResponse, Response
 
 from grader.api.deps import SessionDep
 from grader.core.rubrics import current_grade, grade_history
+from grader.core.states import Role
 from grader.models import Submission
 from grader.pages.auth import InstructorCourse, PageUser, clear_session_cookie, set_session_cookie
 from grader.pages.errors import not_found, sign_in_redirect
@@ -169,7 +169,7 @@ def gradescope_download(request: Request, submission_id: int, session: SessionDe
     if user is None:
         return _sign_in_redirect(request)
     submission = _readable(session, user, submission_id)
-    if submission is None or user.role != "instructor" or current_grade(session, submission.id, report=False) is None:
+    if submission is None or user.role != Role.INSTRUCTOR or current_grade(session, submission.id, report=False) is None:
         return _not_found(request, user, f"Gradescope results of submission {submission_id}")
     return JSONResponse(exports.gradescope(session=session, submission=submission), headers={
         "Content-Disposition": f'attachment; filename="submission-{submission.id}-gradescope-results.json"'})

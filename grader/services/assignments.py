@@ -12,7 +12,7 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session, defer
 
 from grader.core.rubrics import current_grade
-from grader.core.states import AssignmentParts, Role
+from grader.core.states import AssignmentParts, CountedAttempt, Role, Visibility
 from grader.core.timezones import iso
 from grader.models import Assignment, Course, Extension, Grade, Submission, User, utcnow
 from grader.schemas import CountedGradePublic
@@ -23,7 +23,8 @@ from rubric import load_rubric
 DAY_S = 86400
 HOUR = timedelta(hours=1)
 # Gradescope's per-test visibility for each of ours (its "after_published": once the instructor publishes grades).
-GRADESCOPE_VISIBILITY = {"immediate": "visible", "after_due": "after_due_date", "on_release": "after_published"}
+GRADESCOPE_VISIBILITY = {Visibility.IMMEDIATE: "visible", Visibility.AFTER_DUE: "after_due_date",
+                         Visibility.ON_RELEASE: "after_published"}
 
 
 def item_ids(lesson: str, part: str) -> list[str]:
@@ -148,7 +149,7 @@ def _counting(assignment: Assignment, rows) -> dict[int, Counted]:
     for submission, grade in rows:
         this = counted_score(assignment, submission, grade.total, grade.max_total)
         held = by_student.get(submission.student_id)
-        if held is None or assignment.counted_attempt == "latest" or this.counted >= held.counted:
+        if held is None or assignment.counted_attempt == CountedAttempt.LATEST or this.counted >= held.counted:
             by_student[submission.student_id] = this
     return by_student
 

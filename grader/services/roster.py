@@ -9,9 +9,10 @@ import re
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from grader.core.states import Role
+from grader.models import Course, User
 from grader.services import accounts
 from grader.services.errors import Invalid
-from grader.models import Course, User
 
 COLUMNS = ["student_id", "name", "email"]
 STUDENT_ID = re.compile(r"^[A-Za-z0-9_.@\-]{1,64}$")
@@ -65,7 +66,7 @@ def import_roster(*, session: Session, course: Course, rows: list[tuple[str, str
 
 def role_conflicts(*, session: Session, course: Course, rows: list[tuple[str, str, str]]) -> list[dict[str, str]]:
     """Rows naming someone of the course who is not a student (an instructor or auditor)."""
-    staff = set(session.scalars(select(User.name).where(User.course_id == course.id, User.role != "student")))
+    staff = set(session.scalars(select(User.name).where(User.course_id == course.id, User.role != Role.STUDENT)))
     return [{"field": f"csv.student_id {sid}", "rule": f"{sid!r} is on the course staff, not a student"}
             for sid, _, _ in rows if sid in staff]
 

@@ -46,7 +46,7 @@ def create_submission(
         )
         session.add(run)
         session.flush()
-        session.add(Event(submission_id=submission.id, case_run_id=run.id, state="queued", detail=f"queue {run.backend}"))
+        session.add(Event(submission_id=submission.id, case_run_id=run.id, state=CaseRunState.QUEUED, detail=f"queue {run.backend}"))
     return submission
 
 
