@@ -10,6 +10,8 @@ from pathlib import Path
 import httpx
 import yaml
 
+from grader.core.states import SubmissionState
+
 
 def load_sheet(path: Path) -> dict:
     """A sheet from .yaml/.yml or .json."""
@@ -104,7 +106,7 @@ class Client:
             state = self.submission(submission_id)
             if on_progress:
                 on_progress(state)
-            if state["status"] == "failed" or (state["status"] == "graded"
+            if state["status"] == SubmissionState.FAILED or (state["status"] == SubmissionState.GRADED
                                                and (not complete or state.get("report_complete") is not False)):
                 return state
             if deadline is not None and time.monotonic() > deadline:

@@ -19,6 +19,7 @@ import click
 
 from grader.client import Client, load_sheet
 from grader.core.db import migrate, new_session
+from grader.core.states import CaseRunState, SubmissionState
 from grader.dispatch import EMBEDDED_QUEUES, resend
 from grader.reconcile import RECONCILE_EVERY_S, find_and_requeue
 from grader.services import accounts
@@ -76,8 +77,8 @@ def follow(client, submission_id: int, total: int) -> dict:
 
         def update(state: dict) -> None:
             nonlocal shown
-            finished = state["progress"]["done"] + state["progress"]["failed"]
-            drawing = state["status"] == "graded" and state.get("report_complete") is False
+            finished = state["progress"][CaseRunState.DONE] + state["progress"][CaseRunState.FAILED]
+            drawing = state["status"] == SubmissionState.GRADED and state.get("report_complete") is False
             bar.label = ("graded, drawing figures and the lab check" if drawing
                          else f"{state['status']:8s} {state['progress']['running']} running")
             bar.update(finished - shown)
@@ -96,7 +97,7 @@ def summary(client, submission_id: int, state: dict, url: str) -> Path:
         reused = f" (reused case run {run['reused_from_id']})" if run["reused_from_id"] else ""
         click.echo(f"  {run['name']:22s} {run['status']:6s} on {run['actual_backend'] or '-'}{reused}"
                    + (f": {run['error']}" if run["error"] else ""))
-    if state["status"] != "graded":
+    if state["status"] != SubmissionState.GRADED:
         click.echo(f"submission {submission_id} {state['status']}: {state['error']}", err=True)
         return folder
     try:
@@ -139,7 +140,7 @@ def run(*, host: str, port: int, sheet: Path, exit_after_grading: bool) -> int:
             signal.signal(signal.SIGTERM, signal.default_int_handler)  # SIGTERM stops cleanly, like Ctrl-C
             while True:
                 time.sleep(3600)
-        return 0 if state["status"] == "graded" else 1
+        return 0 if state["status"] == SubmissionState.GRADED else 1
     except KeyboardInterrupt:
         return 130
     finally:

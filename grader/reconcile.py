@@ -103,7 +103,7 @@ def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=
                                      Submission.grading_at < now - timedelta(seconds=grading_lease))
     for submission in session.scalars(stuck).all():
         submission.grading_at = utcnow()
-        session.add(Event(submission_id=submission.id, state="grading", detail="grade task re-sent"))
+        session.add(Event(submission_id=submission.id, state=SubmissionState.GRADING, detail="grade task re-sent"))
         resend.gradings.append(submission.id)
     # grading_at is when the grade task was last sent: re-sending it starts the lease again.
     incomplete = (select(Submission).join(Grade, Grade.submission_id == Submission.id)

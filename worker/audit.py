@@ -24,7 +24,7 @@ from grader.core.lifecycle import stored_result
 from grader.core.rubrics import course_rubric
 from grader.models import AuditEntry, CaseRun
 from grader.settings import settings
-from grader.core.states import CaseRunState
+from grader.core.states import TERMINAL, CaseRunState
 
 log = logging.getLogger(__name__)
 
@@ -32,7 +32,7 @@ log = logging.getLogger(__name__)
 def audit_finished_run(session: Session, run_id: int) -> list[AuditEntry]:
     """Every audit entry the finished run calls for (commits); never raises for a comparison's own failure."""
     run = session.get(CaseRun, run_id)
-    if run is None or run.status not in ("done", "failed"):
+    if run is None or run.status not in TERMINAL:
         return []
     if run.spec_key is None:
         run.spec_key = spec_key(run.spec)

@@ -10,8 +10,7 @@ from pathlib import Path
 
 import click
 
-from grader.core.states import Backend, values
-
+from grader.core.states import Backend, SubmissionState, values
 from grader.settings import settings
 
 
@@ -36,8 +35,8 @@ def migrate() -> None:
 def token(course: str, name: str, role: str) -> None:
     """Create COURSE and user NAME if needed, and print a new API token for them (shown only once)."""
     # lazy: SQLAlchemy (~0.5 s) stays off `grader --help`; only the database commands load it
-    from grader.services import accounts
     from grader.core.db import new_session
+    from grader.services import accounts
 
     with new_session() as session:
         course_row = accounts.get_or_create_course(session=session, name=course)
@@ -125,7 +124,7 @@ def submit(sheet_file, url: str, token: str, backend: str | None, force_rerun: b
     except RuntimeError as exc:
         raise click.ClickException(str(exc)) from None
     progress = created["progress"]
-    if created["status"] == "graded":  # a checkpoint sheet on the lesson's cases as already measured
+    if created["status"] == SubmissionState.GRADED:  # a checkpoint sheet on the lesson's cases as already measured
         click.echo(f"submission {created['id']}: graded at once, no case run ({progress['done']} stored "
                    f"measurements of the lesson's own cases reused)")
     else:
@@ -137,9 +136,9 @@ def submit(sheet_file, url: str, token: str, backend: str | None, force_rerun: b
                    f"{late_text(created['late_seconds'])}")
     if no_wait:
         return
-    state = created if created["status"] == "graded" else follow(client, created["id"], progress["total"])
+    state = created if created["status"] == SubmissionState.GRADED else follow(client, created["id"], progress["total"])
     summary(client, created["id"], state, url)
-    if state["status"] != "graded":
+    if state["status"] != SubmissionState.GRADED:
         sys.exit(1)
 
 

@@ -11,7 +11,7 @@ from typing import Any
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from grader.core.states import Backend, ExecutionMode, Precision, values
+from grader.core.states import Backend, CaseRunState, ExecutionMode, Precision, values
 from grader.models import CaseRun, Event, User
 
 BACKENDS = tuple(values(Backend))
@@ -51,7 +51,7 @@ def create_audit_rerun(session: Session, *, source: CaseRun, backend: str, preci
                   source_case_run_id=source.id, requested_by_id=user.id, spec_key=spec_key(source.spec))
     session.add(run)
     session.flush()
-    session.add(Event(submission_id=source.submission_id, case_run_id=run.id, state="queued",
+    session.add(Event(submission_id=source.submission_id, case_run_id=run.id, state=CaseRunState.QUEUED,
                       detail=f"audit re-run of case run {source.id} ({variant(source)}) on "
                              f"{backend}/{precision}/{mode or 'default'}, requested by {user.name}"))
     return run

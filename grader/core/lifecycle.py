@@ -146,7 +146,7 @@ def claim(*, session: Session, case_run_id: int, delivery: int) -> tuple[CaseRun
     run.status, run.tries = CaseRunState.RUNNING, run.tries + 1
     run.worker, run.worker_pid = HOST, os.getpid()
     run.started_at, run.lease_until = now, now + timedelta(seconds=settings.lease_s)
-    session.add(Event(submission_id=run.submission_id, case_run_id=run.id, state="running",
+    session.add(Event(submission_id=run.submission_id, case_run_id=run.id, state=CaseRunState.RUNNING,
                       detail=f"{HOST} pid {os.getpid()} try {run.tries}"))
     return run, False
 
@@ -241,7 +241,7 @@ def _finish(session: Session, run: CaseRun, *, status: str, error: str | None = 
             .values(status=SubmissionState.GRADING, grading_at=utcnow(), updated_at=utcnow())
         ).rowcount == 1
         if started:
-            session.add(Event(submission_id=submission.id, state="grading"))
+            session.add(Event(submission_id=submission.id, state=SubmissionState.GRADING))
     session.commit()
     return started
 
