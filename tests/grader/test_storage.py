@@ -23,22 +23,52 @@ def test_the_migration_creates_exactly_the_models(tmp_path):
     assert diff == []
 
 
+def alembic_config(url: str):
+    """Alembic's configuration for the project's migrations on `url`, to step them down and up."""
+    from alembic.config import Config
+
+    from grader.core.db import MIGRATIONS
+
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS))
+    config.set_main_option("sqlalchemy.url", url.replace("%", "%%"))
+    return config
+
+
+def migrated_with_a_submission(url: str, specs: list):
+    """(engine, submission id) of a database migrated to head holding one submission of alice's with these cases."""
+    from sqlalchemy import select
+    from sqlalchemy.orm import Session
+
+    from grader.core.db import make_engine, migrate
+    from grader.models import User
+    from grader.services import submissions
+    from tests.factories import create_people, reference_sheet
+
+    migrate(url)
+    engine = make_engine(url)
+    with Session(engine) as session:
+        create_people(session, course="l03", other_course="other")
+        alice = session.scalar(select(User).where(User.name == "alice"))
+        submission = submissions.create_submission(session=session, student=alice, lesson="L03",
+                                                   sheet=reference_sheet(), specs=specs, force_rerun=False)
+        session.commit()
+        return engine, submission.id
+
+
 def down_to_0005_and_up(url: str) -> None:
     """Migrations 0008-0006 go down, taking their columns, and up again; an existing course shows UTC after."""
     from alembic import command
-    from alembic.config import Config
     from sqlalchemy import inspect, text
 
-    from grader.core.db import MIGRATIONS, make_engine, migrate
+    from grader.core.db import make_engine, migrate
 
     migrate(url)
     engine = make_engine(url)
     with engine.begin() as conn:
         conn.execute(text("INSERT INTO courses (name, created_at, timezone) "
                           "VALUES ('c', CURRENT_TIMESTAMP, 'Europe/Berlin')"))
-    config = Config()
-    config.set_main_option("script_location", str(MIGRATIONS))
-    config.set_main_option("sqlalchemy.url", url.replace("%", "%%"))
+    config = alembic_config(url)
     command.downgrade(config, "0005")
     with engine.connect() as conn:
         columns = {c["name"] for table in ("assignments", "courses") for c in inspect(conn).get_columns(table)}
@@ -57,31 +87,18 @@ def test_migration_0009_makes_every_grade_stored_before_it_complete(tmp_path):
     """Grades stored before 0009 had their figures and lab check drawn before they were stored: complete, as of
     when they were made. One stored after it by a worker still drawing stays incomplete."""
     from alembic import command
-    from alembic.config import Config
     from sqlalchemy import select, text
     from sqlalchemy.orm import Session
 
-    from grader.services import accounts, submissions
-    from grader.core.db import MIGRATIONS, make_engine, migrate
-    from grader.models import Grade, User
-    from tests.factories import create_people, reference_sheet
+    from grader.models import Grade
 
     url = f"sqlite:///{tmp_path / 'm.db'}"
-    migrate(url)
-    engine = make_engine(url)
+    engine, submission_id = migrated_with_a_submission(url, specs=[])
     with Session(engine) as session:
-        create_people(session, course="l03", other_course="other")
-        alice = session.scalar(select(User).where(User.name == "alice"))
-        submission = submissions.create_submission(session=session, student=alice, lesson="L03", sheet=reference_sheet(),
-                                            specs=[], force_rerun=False)
-        session.flush()
-        session.add(Grade(submission_id=submission.id, rubric_lesson="L03", rubric_version="2", rubric_hash="x",
+        session.add(Grade(submission_id=submission_id, rubric_lesson="L03", rubric_version="2", rubric_hash="x",
                           total=1, max_total=2, report={}))
         session.commit()
-        submission_id = submission.id
-    config = Config()
-    config.set_main_option("script_location", str(MIGRATIONS))
-    config.set_main_option("sqlalchemy.url", url)
+    config = alembic_config(url)
     command.downgrade(config, "0008")
     command.upgrade(config, "head")
     with engine.connect() as conn:
@@ -101,30 +118,15 @@ def test_migration_0010_renames_a_case_runs_attempt_to_delivery_keeping_its_numb
     """A case run's message number was called attempt, like a student's attempt on an assignment; 0010 renames the
     column and every stored number stays, down and up."""
     from alembic import command
-    from alembic.config import Config
-    from sqlalchemy import inspect, select, text
-    from sqlalchemy.orm import Session
+    from sqlalchemy import inspect, text
 
-    from grader.core.db import MIGRATIONS, make_engine, migrate
-    from grader.models import User
-    from grader.services import submissions
     from rubric import get_case
-    from tests.factories import create_people, reference_sheet
 
     url = f"sqlite:///{tmp_path / 'm.db'}"
-    migrate(url)
-    engine = make_engine(url)
-    with Session(engine) as session:
-        create_people(session, course="l03", other_course="other")
-        alice = session.scalar(select(User).where(User.name == "alice"))
-        submissions.create_submission(session=session, student=alice, lesson="L03", sheet=reference_sheet(),
-                                      specs=[get_case("N1"), get_case("N2")], force_rerun=False)
-        session.commit()
+    engine, _ = migrated_with_a_submission(url, specs=[get_case("N1"), get_case("N2")])
     with engine.begin() as conn:
         conn.execute(text("UPDATE case_runs SET delivery = 3 WHERE name = 'N2'"))
-    config = Config()
-    config.set_main_option("script_location", str(MIGRATIONS))
-    config.set_main_option("sqlalchemy.url", url)
+    config = alembic_config(url)
     command.downgrade(config, "0009")
     with engine.connect() as conn:
         assert "delivery" not in {c["name"] for c in inspect(conn).get_columns("case_runs")}
@@ -140,10 +142,9 @@ def test_migration_0011_renames_an_assignments_items_to_part_keeping_it(tmp_path
     """An assignment's part of the sheet (checkpoints, exercises, sheet) was a column named items; it stays, down and
     up."""
     from alembic import command
-    from alembic.config import Config
     from sqlalchemy import text
 
-    from grader.core.db import MIGRATIONS, make_engine, migrate
+    from grader.core.db import make_engine, migrate
 
     url = f"sqlite:///{tmp_path / 'm.db'}"
     migrate(url)
@@ -157,9 +158,7 @@ def test_migration_0011_renames_an_assignments_items_to_part_keeping_it(tmp_path
             "late_penalty_per_day, counted_attempt, visibility, item_visibility, created_by_id, created_at) VALUES "
             "(1, 'CP', 'L03', 'checkpoints', CURRENT_TIMESTAMP, CURRENT_TIMESTAMP, CURRENT_TIMESTAMP, 0, 'latest', "
             "'immediate', '{}', 1, CURRENT_TIMESTAMP)"))
-    config = Config()
-    config.set_main_option("script_location", str(MIGRATIONS))
-    config.set_main_option("sqlalchemy.url", url)
+    config = alembic_config(url)
     command.downgrade(config, "0010")
     with engine.connect() as conn:
         assert conn.execute(text("SELECT items FROM assignments")).scalar() == "checkpoints"
