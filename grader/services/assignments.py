@@ -216,6 +216,15 @@ def create(*, session: Session, course: Course, user: User, fields: dict) -> Ass
     return assignment
 
 
+def release(*, session: Session, assignment: Assignment) -> Assignment:
+    """Show the assignment's withheld (on_release) scores and feedback to its students; nothing is regraded. Releasing
+    again keeps the first release time. Commits."""
+    if assignment.released_at is None:
+        assignment.released_at = utcnow()
+        session.commit()
+    return assignment
+
+
 def grant_extension(*, session: Session, assignment: Assignment, student_name: str, due_at: datetime,
                     hard_close_at: datetime, user: User) -> Extension:
     """Give one student their own due date and hard close (replaces an earlier one); Invalid for an unknown student.

@@ -11,7 +11,7 @@ from grader.api.deps import CurrentUser, InstructorCourse, InstructorUser, Membe
 from grader.services import assignments as logic
 from grader.services import exports
 from grader.api.responses import csv_ok, errors
-from grader.models import Assignment, utcnow
+from grader.models import Assignment
 from grader.schemas import (AssignmentCreate, AssignmentPublic, CountedGradePublic, ExtensionCreate,
                             ExtensionPublic)
 
@@ -66,10 +66,7 @@ def get_assignment(assignment: ReadableAssignment):
 def release(assignment: InstructorsAssignment, session: SessionDep):
     """Show the assignment's scores and feedback to its students (visibility on_release; an instructor of the
     course). Releasing again keeps the first release time."""
-    if assignment.released_at is None:
-        assignment.released_at = utcnow()
-        session.commit()
-    return assignment_public(assignment)
+    return assignment_public(logic.release(session=session, assignment=assignment))
 
 
 @router.post("/assignments/{assignment_id}/extensions", status_code=status.HTTP_201_CREATED,
