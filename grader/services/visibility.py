@@ -9,6 +9,7 @@ its score, verdict, evidence and feedback are not shown, and the totals count th
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from datetime import datetime
 
 from sqlalchemy.orm import Session
@@ -101,7 +102,7 @@ class GradeView:
         """Whether there is a grade and any of it may be shown."""
         return self.stored is not None and self.nothing_shown is None
 
-    @property
+    @cached_property  # masked once per view: total, max_total and pending all read it
     def report(self) -> dict | None:
         """The report as this user may see it (the stored one where nothing is withheld)."""
         if not self.shown:
