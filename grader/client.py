@@ -61,8 +61,9 @@ class Client:
     def regrade_preview(self, course: str, version: str, lesson: str = "L03") -> dict:
         return self._ok(self.http.get(f"/courses/{course}/regrade-preview", params={"version": version, "lesson": lesson}))
 
-    def commit_regrade(self, course: str, version: str, lesson: str = "L03") -> dict:
-        return self._ok(self.http.post(f"/courses/{course}/regrades", json={"version": version, "lesson": lesson}))
+    def commit_regrade(self, course: str, version: str, content_hash: str, lesson: str = "L03") -> dict:
+        body = {"version": version, "lesson": lesson, "content_hash": content_hash}
+        return self._ok(self.http.post(f"/courses/{course}/regrades", json=body))
 
     def create_assignment(self, course: str, body: dict) -> dict:
         return self._ok(self.http.post(f"/courses/{course}/assignments", json=body))

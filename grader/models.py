@@ -33,6 +33,8 @@ class Course(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
     # The IANA zone the course's times are shown in (pages, refusal messages); they are stored in UTC regardless.
     timezone: Mapped[str] = mapped_column(String(64), default="UTC", server_default="UTC")
+    # Whether students may submit outside an assignment; what an assignment withholds is withheld there too.
+    free_submissions: Mapped[bool] = mapped_column(Boolean, default=True, server_default=text("true"))
 
 
 class User(Base):
@@ -60,6 +62,27 @@ class ApiToken(Base):
     user_id: Mapped[int] = mapped_column(ForeignKey("users.id"), index=True)
     token_hash: Mapped[str] = mapped_column(String(64), unique=True)
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    # None: never expires (only a token made before expiry existed and the migration did not reach).
+    expires_at: Mapped[datetime | None] = mapped_column(DateTime)
+    revoked_at: Mapped[datetime | None] = mapped_column(DateTime)
+
+    user: Mapped[User] = relationship(lazy="joined")
+
+
+class WebSession(Base):
+    """A page sign-in: the browser's cookie holds a random secret, this row only its sha256. It ends when idle past
+    settings.session_idle_s, at expires_at, or when revoked (sign-out, its token revoked, an instructor's revoke)."""
+
+    __tablename__ = "web_sessions"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id"), index=True)
+    # The token signed in with: revoking it ends the sessions it opened.
+    token_id: Mapped[int | None] = mapped_column(ForeignKey("api_tokens.id"), index=True)
+    secret_hash: Mapped[str] = mapped_column(String(64), unique=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    last_seen_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    expires_at: Mapped[datetime] = mapped_column(DateTime)
     revoked_at: Mapped[datetime | None] = mapped_column(DateTime)
 
     user: Mapped[User] = relationship(lazy="joined")
@@ -219,13 +242,18 @@ class Measurement(Base):
 
 
 class RubricVersion(Base):
-    """A rubric version known to the service: shipped with it (rubric/lessons, no publisher) or published by an
-    instructor. Its content is stored whole, so a grade's version stays readable whatever the files say later."""
+    """A rubric version known to the service: shipped with it (rubric/lessons, no publisher, no course: every course
+    reads it) or published by an instructor for their course alone, never changed after. Its content is stored whole,
+    so a grade's version stays readable whatever the files say later."""
 
     __tablename__ = "rubric_versions"
-    __table_args__ = (UniqueConstraint("lesson", "version"),)
+    # NULLs are distinct in a unique constraint, so the shipped versions are kept unique by a partial index.
+    __table_args__ = (UniqueConstraint("course_id", "lesson", "version", name="uq_rubric_versions_course"),
+                      Index("uq_rubric_versions_shipped", "lesson", "version", unique=True,
+                            postgresql_where=text("course_id IS NULL"), sqlite_where=text("course_id IS NULL")))
 
     id: Mapped[int] = mapped_column(primary_key=True)
+    course_id: Mapped[int | None] = mapped_column(ForeignKey("courses.id"), index=True)
     lesson: Mapped[str] = mapped_column(String(16))
     version: Mapped[str] = mapped_column(String(32))
     content_hash: Mapped[str] = mapped_column(String(64))

@@ -44,7 +44,7 @@ def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
     try:
         book = course_rubric(session, submission.course_id, submission.lesson)
         grade = grade_and_store(session=session, submission=submission, book=book, complete=False,
-                                detail="{total:g} / {max_total:g}; figures and lab check next")
+                                detail="figures and lab check next")
     except Exception as exc:  # a grading bug must be visible on the submission, not a stuck 'grading'
         session.rollback()
         submission = session.get(Submission, submission_id)

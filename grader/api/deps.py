@@ -37,10 +37,11 @@ def current_user(session: SessionDep,
                  credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)]) -> User:
     if credentials is None or credentials.scheme.lower() != "bearer":
         raise HTTPException(status.HTTP_401_UNAUTHORIZED, "missing bearer token", {"WWW-Authenticate": "Bearer"})
-    user = accounts.user_by_token(session=session, token=credentials.credentials)
-    if user is None:
-        raise HTTPException(status.HTTP_401_UNAUTHORIZED, "unknown or revoked token", {"WWW-Authenticate": "Bearer"})
-    return user
+    row = accounts.find_token(session=session, token=credentials.credentials)
+    refusal = accounts.token_refusal(row)
+    if refusal is not None:  # says which: unknown, revoked or expired
+        raise HTTPException(status.HTTP_401_UNAUTHORIZED, refusal, {"WWW-Authenticate": "Bearer"})
+    return row.user
 
 
 CurrentUser = Annotated[User, Depends(current_user)]

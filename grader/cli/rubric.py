@@ -36,7 +36,7 @@ def rubric() -> None:
 @TOKEN
 @LESSON
 def list_versions(url: str, token: str, lesson: str) -> None:
-    """Every version of a lesson's rubric the service knows, with who published it."""
+    """Every version of a lesson's rubric your course may use (shipped, or published in it), with who published it."""
     for v in _call(_client(url, token).rubric_versions, lesson):
         who = f"published by {v['published_by']}" if v["published_by"] else "shipped"
         click.echo(f"v{v['version']:<6} {v['content_hash'][:12]}  {who}, {v['published_at']}  "
@@ -48,7 +48,7 @@ def list_versions(url: str, token: str, lesson: str) -> None:
 @URL
 @TOKEN
 def publish(rubric_file: Path, url: str, token: str) -> None:
-    """Publish RUBRIC_FILE (YAML or JSON, the fields of rubric/lessons/L03-v2.yaml) as a new version."""
+    """Publish RUBRIC_FILE (YAML or JSON, the fields of rubric/lessons/L03-v2.yaml) as a new version of your course."""
     content = yaml.safe_load(rubric_file.read_text())
     row = _call(_client(url, token).publish_rubric, json.loads(json.dumps(content, default=str)))
     click.echo(f"published {row['lesson']} v{row['version']} ({row['content_hash'][:12]}) by {row['published_by']}")
@@ -65,7 +65,8 @@ def regrade(course: str, version: str, url: str, token: str, lesson: str, commit
     """Preview regrading COURSE under VERSION, per student; --commit writes it."""
     client = _client(url, token)
     preview = _call(client.regrade_preview, course, version, lesson)
-    click.echo(f"{preview['lesson']} v{preview['current_version']} -> v{preview['new_version']}, course {course}")
+    click.echo(f"{preview['lesson']} v{preview['current_version']} -> v{preview['new_version']} "
+               f"({preview['content_hash'][:12]}), course {course}")
     for old, changes in preview["rubric_changes"].items():
         click.echo(f"  from v{old}: " + ("; ".join(changes) or "no change"))
     for e in preview["entries"]:
@@ -79,6 +80,6 @@ def regrade(course: str, version: str, url: str, token: str, lesson: str, commit
     if not commit:
         click.echo("preview only: nothing written (add --commit to regrade)")
         return
-    done = _call(client.commit_regrade, course, version, lesson)
+    done = _call(client.commit_regrade, course, version, preview["content_hash"], lesson)  # exactly what was shown
     click.echo(f"regrade #{done['id']} committed by {done['committed_by']} at {done['committed_at']}: "
                f"{done['regraded']} regraded, {done['changed']} changed, {len(done['skipped'])} left on their grade")

@@ -29,22 +29,55 @@ def migrate() -> None:
 
 
 @admin.command()
-@click.argument("course")
-@click.argument("name")
-@click.option("--role", type=click.Choice(["student", "instructor", "auditor"]), required=True)
-def token(course: str, name: str, role: str) -> None:
-    """Create COURSE and user NAME if needed, and print a new API token for them (shown only once)."""
+@click.argument("course", required=False)
+@click.argument("name", required=False)
+@click.option("--role", type=click.Choice(["student", "instructor", "auditor"]), help="The new user's role.")
+@click.option("--expires-in", type=click.IntRange(1, 3650), metavar="DAYS",
+              help=f"The new token expires after DAYS days (default {settings.token_lifetime_days}).")
+@click.option("--revoke", metavar="TOKEN_OR_ID", help="Revoke this token (or the token with this id from --list) "
+              "and end the page sessions it opened.")
+@click.option("--list", "list_tokens", is_flag=True, help="List NAME's tokens: id, created, expiry, revoked.")
+def token(course: str | None, name: str | None, role: str | None, expires_in: int | None, revoke: str | None,
+          list_tokens: bool) -> None:
+    """Create COURSE and user NAME if needed, and print a new API token for them (shown only once); or --revoke a
+    token; or --list NAME's tokens."""
     # lazy: SQLAlchemy (~0.5 s) stays off `grader --help`; only the database commands load it
     from grader.core.db import new_session
     from grader.services import accounts
+    from grader.services.errors import DomainError
 
+    if revoke is not None:
+        if course or name or role or expires_in or list_tokens:
+            raise click.UsageError("--revoke takes only the token or its id: no COURSE, NAME, --role, --expires-in "
+                                   "or --list")
+        with new_session() as session:
+            try:
+                row = accounts.revoke_token(session=session, token_or_id=revoke)
+            except DomainError as exc:
+                raise click.ClickException(exc.detail) from None
+            session.commit()
+            click.echo(f"token {row.id} of {row.user.name} revoked at {row.revoked_at:%Y-%m-%d %H:%M} UTC")
+        return
+    if not (course and name) or (role is None and not list_tokens):
+        raise click.UsageError("give COURSE NAME --role ROLE to create a token, COURSE NAME --list to list a user's, "
+                               "or --revoke TOKEN_OR_ID")
     with new_session() as session:
+        if list_tokens:
+            try:
+                rows = accounts.tokens_of(session=session, course=course, name=name)
+            except DomainError as exc:
+                raise click.ClickException(exc.detail) from None
+            for row in rows:
+                expires = f"{row.expires_at:%Y-%m-%d %H:%M}" if row.expires_at else "never"
+                revoked = f"  revoked {row.revoked_at:%Y-%m-%d %H:%M}" if row.revoked_at else ""
+                click.echo(f"{row.id}  created {row.created_at:%Y-%m-%d %H:%M}  expires {expires}{revoked}")
+            return
         course_row = accounts.get_or_create_course(session=session, name=course)
         try:
             user = accounts.get_or_create_user(session=session, course=course_row, name=name, role=role)
         except ValueError as exc:
             raise click.ClickException(str(exc)) from None
-        clear = accounts.create_token(session=session, user=user)
+        clear = accounts.create_token(session=session, user=user, expires_in_days=expires_in)
         session.commit()
     click.echo(clear)
 
@@ -104,8 +137,8 @@ def reconcile(every: float) -> None:
 @click.argument("sheet_file", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option("--url", envvar="GRADER_URL", default="http://127.0.0.1:8000", show_default=True)
 @click.option("--token", envvar="GRADER_TOKEN", required=True, help="API token (or GRADER_TOKEN).")
-@click.option("--backend", type=click.Choice(values(Backend)), help="Run every case on this backend.")
-@click.option("--force-rerun", is_flag=True, help="Measure afresh instead of reusing stored measurements.")
+@click.option("--backend", type=click.Choice(values(Backend)), help="Run every case on this backend (staff only).")
+@click.option("--force-rerun", is_flag=True, help="Measure afresh instead of reusing stored measurements (staff only).")
 @click.option("--no-wait", is_flag=True, help="Submit and print the id without following progress.")
 @click.option("--assignment", "assignment_id", type=int, default=None,
               help="Submit to this assignment of your course (the sheet answers exactly its items).")

@@ -32,7 +32,8 @@ def store_grade(*, session: Session, submission: Submission, book, report: rubri
     """Store `report` as the submission's current grade (no commit). `complete`: its figures and lab check need no
     drawing (a checkpoint set, or a regrade that evaluated the check again); otherwise `completed_at` stays empty
     until worker.grading.complete_grade adds them. A regrade's grade supersedes the current one, kept in the history;
-    any other grading moves the submission to graded with an event (`detail`)."""
+    any other grading moves the submission to graded with an event naming the rubric version and `detail`: never the
+    scores, which a student may not be shown yet (grader.services.visibility)."""
     now = now or utcnow()
     if regrade is not None:
         current = current_grade(session, submission.id, report=False)
@@ -46,8 +47,8 @@ def store_grade(*, session: Session, submission: Submission, book, report: rubri
     session.add(grade)
     if regrade is None:
         submission.graded_at = now
-        touch(submission, SubmissionState.GRADED, detail or f"{report.total:g} / {report.max_total:g}",
-              session=session)
+        touch(submission, SubmissionState.GRADED,
+              f"graded under rubric {book.lesson} v{book.version}" + (f"; {detail}" if detail else ""), session=session)
     return grade
 
 
@@ -57,5 +58,4 @@ def grade_and_store(*, session: Session, submission: Submission, book, complete:
     started = time.perf_counter()
     report = score(submission, book)
     return store_grade(session=session, submission=submission, book=book, report=report,
-                       execution_s=time.perf_counter() - started, complete=complete,
-                       detail=detail and detail.format(total=report.total, max_total=report.max_total))
+                       execution_s=time.perf_counter() - started, complete=complete, detail=detail)

@@ -105,9 +105,10 @@ def _version_control(folder: Path) -> tuple[bool, str]:
 def lab_check(results: Mapping[str, CaseResult], *, figures: list, rubric: Rubric, reused: Mapping[str, int],
               artifacts_dir: Path) -> tuple[CheckOutcome | None, str]:
     """(the lab check of the submission's runs, or None, and a note for its event). A bug in evaluating the check
-    never blocks or changes a grade: the grade then stores no check and the note says why."""
+    never blocks or changes a grade: the grade then stores no check and the note says why. The note leaves the verdict
+    to the report: a student sees the check only once no item of the grade is withheld (grader.services.visibility)."""
     try:
         check = submission_check(results, figures=figures, artifacts_dir=artifacts_dir, rubric=rubric, reused=reused)
     except Exception as exc:  # noqa: BLE001 - the evidence of a check bug is the event, the grade stands
         return None, f"lab check failed: {type(exc).__name__}: {exc}"
-    return check, check.verdict_line
+    return check, f"lab check stored ({len(check.conditions)} conditions): its verdict is on the report"

@@ -1,8 +1,11 @@
-"""Who is looking at a page: the session cookie set at sign-in, or the API's `Authorization: Bearer` header.
+"""Who is looking at a page: a server-side sign-in session named by the cookie, or the API's `Authorization: Bearer`
+header.
 
-The cookie holds the caller's API token (HttpOnly, SameSite=Strict, Secure outside development): the pages and
-the API share one credential and one revocation. The API itself accepts only the header, so a page can never be
-used to submit on a student's behalf from another site.
+Signing in with a token opens a session (grader.services.sessions); the cookie holds only that session's random
+secret (HttpOnly, SameSite=Strict, Secure over https and in production), never the token. It stops working when the
+session is idle too long, reaches its lifetime, or is revoked by sign-out or by revoking its token. The API accepts
+only the header, so a page can never be used to submit on a student's behalf from another site; the pages' own
+forms are checked by origin (grader.pages.csrf).
 """
 
 from __future__ import annotations
@@ -11,7 +14,7 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
-from grader.services import access, accounts, assignments
+from grader.services import access, accounts, assignments, sessions
 from grader.api.deps import SessionDep
 from grader.core.states import STAFF, Role
 from grader.models import Assignment, Course, User
@@ -19,24 +22,27 @@ from grader.services.errors import Forbidden, NotFound
 from grader.settings import settings
 
 COOKIE = "grader_session"
-COOKIE_MAX_AGE_S = 12 * 3600
 
 
 def page_user(request: Request, session: SessionDep) -> User | None:
     """The signed-in user, or None (the page then redirects to the sign-in form)."""
     header = request.headers.get("authorization", "")
     scheme, _, token = header.partition(" ")
-    if scheme.lower() != "bearer" or not token:
-        token = request.cookies.get(COOKIE, "")
-    return accounts.user_by_token(session=session, token=token.strip()) if token else None
+    if scheme.lower() == "bearer" and token.strip():
+        return accounts.user_by_token(session=session, token=token.strip())
+    secret = request.cookies.get(COOKIE, "")
+    user = sessions.session_user(session=session, secret=secret) if secret else None
+    if session.dirty:  # the session was seen: its idle time starts again
+        session.commit()
+    return user
 
 
 PageUser = Annotated[User | None, Depends(page_user)]
 
 
-def set_session_cookie(response, token: str) -> None:
-    response.set_cookie(COOKIE, token, max_age=COOKIE_MAX_AGE_S, httponly=True, samesite="strict",
-                        secure=settings.environment == "production", path="/")
+def set_session_cookie(response, request: Request, secret: str) -> None:
+    response.set_cookie(COOKIE, secret, max_age=int(settings.session_lifetime_s), httponly=True, samesite="strict",
+                        secure=request.url.scheme == "https" or settings.environment == "production", path="/")
 
 
 def clear_session_cookie(response) -> None:

@@ -12,6 +12,7 @@ from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
 from grader.core.db import new_session
 from grader.pages.auth import SignInRequired, page_user
+from grader.pages.csrf import CrossSiteRefused
 from grader.pages.templates import TEMPLATES
 from grader.services.errors import DomainError, Forbidden, NotFound
 
@@ -39,5 +40,10 @@ async def _sign_in(request: Request, _: SignInRequired) -> Response:
     return sign_in_redirect(request)
 
 
+async def _cross_site(request: Request, exc: CrossSiteRefused) -> Response:
+    return page_error(request, exc, status.HTTP_403_FORBIDDEN)
+
+
 def install(app: FastAPI) -> None:
     app.add_exception_handler(SignInRequired, _sign_in)
+    app.add_exception_handler(CrossSiteRefused, _cross_site)

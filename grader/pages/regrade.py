@@ -1,7 +1,9 @@
 """The instructor's rubric pages: the course's rubric versions and regrades, a regrade's preview, and its commit.
 
-Instructors and auditors of the course read them; only an instructor commits (a POST form; the session cookie is
-SameSite=Strict, so another site cannot post it). Everything else is the 404 page, revealing nothing.
+Instructors and auditors of the course read them; only an instructor commits (a POST form naming the content hash
+it previewed; the session cookie is SameSite=Strict, so another site cannot post it). Everything else is the 404 page,
+revealing nothing; another course's published versions are unknown here. A preview or commit refused (an unknown,
+archived or changed version, a malformed field) is the regrade page with the reason, never a server error.
 """
 
 from __future__ import annotations
@@ -14,8 +16,8 @@ from grader.core import rubrics as store
 from grader.pages.auth import InstructorCourse, SignedIn, StaffCourse
 from grader.pages.errors import not_found as _not_found
 from grader.pages.templates import TEMPLATES
+from grader.services.errors import Conflict, DomainError, Invalid, NotFound
 from grader.services.regrade import commit_regrade, preview_regrade, regrade_records, rubric_versions
-from rubric import ArchivedRubric
 
 router = APIRouter(include_in_schema=False)
 
@@ -24,11 +26,19 @@ router = APIRouter(include_in_schema=False)
 def rubrics_page(request: Request, row: StaffCourse, session: SessionDep, user: SignedIn, lesson: str = "L03"):
     if lesson not in ("L03",):
         return _not_found(request, user, f"rubrics of course {row.name} for lesson {lesson}")
-    versions = rubric_versions(session, lesson)
+    versions = rubric_versions(session, course=row, lesson=lesson)
     regrades = regrade_records(session, course=row, lesson=lesson)
     return TEMPLATES.TemplateResponse(request, "rubrics.html", {
         "user": user, "course": row.name, "lesson": lesson, "versions": versions, "regrades": regrades,
         "current": store.course_version(session, row.id, lesson)})
+
+
+def _refused(request: Request, user, course: str, exc: DomainError) -> HTMLResponse:
+    code = next(c for kind, c in ((NotFound, 404), (Conflict, 409), (Invalid, 422), (DomainError, 400))
+                if isinstance(exc, kind))
+    return TEMPLATES.TemplateResponse(request, "regrade.html", {
+        "user": user, "course": course, "error": exc.detail, "errors": exc.errors, "preview": None},
+        status_code=code)
 
 
 @router.get("/courses/{course}/regrade", response_class=HTMLResponse)
@@ -36,15 +46,18 @@ def regrade_preview_page(request: Request, row: StaffCourse, session: SessionDep
                          lesson: str = "L03"):
     try:
         preview = preview_regrade(session, course=row, lesson=lesson, version=version)
-    except (LookupError, ArchivedRubric) as exc:
-        return TEMPLATES.TemplateResponse(request, "regrade.html", {
-            "user": user, "course": row.name, "error": str(exc), "preview": None}, status_code=409)
+    except DomainError as exc:
+        return _refused(request, user, row.name, exc)
     return TEMPLATES.TemplateResponse(request, "regrade.html", {
         "user": user, "course": row.name, "error": None, "preview": preview})
 
 
 @router.post("/courses/{course}/regrade")
-def regrade_commit_page(row: InstructorCourse, session: SessionDep, user: SignedIn,
-                        version: str = Form(...), lesson: str = Form("L03")):
-    regrade, _ = commit_regrade(session, course=row, lesson=lesson, version=version, user=user)
+def regrade_commit_page(request: Request, row: InstructorCourse, session: SessionDep, user: SignedIn,
+                        version: str = Form(""), lesson: str = Form("L03"), content_hash: str = Form("")):
+    try:
+        regrade, _ = commit_regrade(session, course=row, lesson=lesson, version=version, content_hash=content_hash,
+                                    user=user)
+    except DomainError as exc:
+        return _refused(request, user, row.name, exc)
     return RedirectResponse(f"/courses/{row.name}/rubrics#regrade-{regrade.id}", status_code=status.HTTP_303_SEE_OTHER)

@@ -14,11 +14,11 @@ from grader.api.deps import SessionDep
 from grader.core.rubrics import current_grade, grade_history
 from grader.core.states import Role
 from grader.models import Submission
-from grader.pages.auth import InstructorCourse, PageUser, clear_session_cookie, set_session_cookie
+from grader.pages.auth import COOKIE, InstructorCourse, PageUser, clear_session_cookie, set_session_cookie
 from grader.pages.errors import not_found, sign_in_redirect
 from grader.pages.templates import TEMPLATES
 from grader.pages.views import report_view
-from grader.services import access, accounts, assignments, exports, submissions
+from grader.services import access, accounts, assignments, exports, sessions, submissions
 from grader.services.errors import NotFound
 from grader.services.visibility import attempt_standing, grade_view
 from grader.settings import settings
@@ -49,26 +49,40 @@ def home(request: Request, user: PageUser):
     return RedirectResponse("/submissions", status_code=status.HTTP_303_SEE_OTHER)
 
 
+def _sign_in_page(request: Request, user, next: str, error: str | None = None, code: int = status.HTTP_200_OK):
+    return TEMPLATES.TemplateResponse(request, "sign_in.html", {
+        "user": user, "next": _safe_next(next), "error": error, "idle_hours": round(settings.session_idle_s / 3600),
+        "lifetime_days": round(settings.session_lifetime_s / 86400)}, status_code=code)
+
+
 @router.get("/sign-in", response_class=HTMLResponse)
 def sign_in_form(request: Request, user: PageUser, next: str = "/submissions"):
-    return TEMPLATES.TemplateResponse(request, "sign_in.html", {"user": user, "next": _safe_next(next), "error": None})
+    return _sign_in_page(request, user, next)
 
 
 @router.post("/sign-in", response_class=HTMLResponse)
 def sign_in(request: Request, session: SessionDep, token: str = Form(""), next: str = Form("/submissions")):
-    user = accounts.user_by_token(session=session, token=token.strip()) if token.strip() else None
-    if user is None:
-        return TEMPLATES.TemplateResponse(
-            request, "sign_in.html",
-            {"user": None, "next": _safe_next(next), "error": "That token is unknown or has been revoked."},
-            status_code=status.HTTP_401_UNAUTHORIZED)
+    """Opens a page session for a working token; the cookie gets the session's secret, never the token."""
+    row = accounts.find_token(session=session, token=token.strip())
+    refusal = accounts.token_refusal(row)
+    if refusal is not None:
+        error = "That token is unknown or has been revoked." if row is None else f"That {refusal}."
+        return _sign_in_page(request, None, next, error, status.HTTP_401_UNAUTHORIZED)
+    if request.cookies.get(COOKIE):  # a session this browser held before ends with the new one
+        sessions.revoke_session(session=session, secret=request.cookies[COOKIE])
+    secret = sessions.open_session(session=session, user=row.user, token=row)
+    session.commit()
     response = RedirectResponse(_safe_next(next), status_code=status.HTTP_303_SEE_OTHER)
-    set_session_cookie(response, token.strip())
+    set_session_cookie(response, request, secret)
     return response
 
 
 @router.post("/sign-out")
-def sign_out():
+def sign_out(request: Request, session: SessionDep):
+    """Revokes the session: the same cookie, kept or copied, no longer opens a page."""
+    if request.cookies.get(COOKIE):
+        sessions.revoke_session(session=session, secret=request.cookies[COOKIE])
+        session.commit()
     response = RedirectResponse("/sign-in", status_code=status.HTTP_303_SEE_OTHER)
     clear_session_cookie(response)
     return response

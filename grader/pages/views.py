@@ -193,7 +193,7 @@ def _rubric(grade: Grade):
     exhausted the pool) and without parsing the shipped files on every page view."""
 
     try:
-        return stored_version(object_session(grade), grade.rubric_lesson, grade.rubric_version)
+        return stored_version(object_session(grade), grade.rubric_lesson, grade.rubric_version, grade.rubric_hash)
     except Exception:  # a grade stays readable even if its rubric is unreadable: tolerances then show bare values
         return None
 

@@ -9,4 +9,5 @@ dashboard     the class dashboard, resend         regrade      preview and commi
 audit         the discrepancy log, audit re-runs  roster       roster import
 courses       course settings                     sheets       the sheet models for the API
 errors        the domain error tree               sending      what services need of the task queue
+sessions      page sessions (sign-in, sign-out)   quotas       per-person limits on costly requests
 """

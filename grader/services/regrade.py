@@ -5,26 +5,39 @@ cases a sheet needs is decided by the lesson and the sheet's configs (rubric.cas
 new version needs a case it never measured is left on its grade with that reason. Committing supersedes each
 current grade with a new one under the new version and keeps the old (grader.core.rubrics.grade_history), and the
 course grades its new submissions under that version from then on. Both are recorded with who and when.
+
+A course regrades only under the versions it may read (shipped, or its own published ones), and a commit names the
+content hash its preview showed: content other than what the instructor previewed is never committed.
 """
 
 from __future__ import annotations
 
+import re
 import time
 
 from pydantic import BaseModel
 from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 import rubric
 from grader.core import grading
 from grader.core.lab_check import lab_check
 from grader.core.lifecycle import stored_result
-from grader.core.rubrics import course_version, get_version, sync_shipped
+from grader.core.rubrics import course_version, course_versions, get_version, stored_version
 from grader.models import Course, Grade, Regrade, RubricVersion, Submission, User, utcnow
 from grader.schemas import UtcDateTime
+from grader.services.errors import Conflict, Invalid, NotFound
 from grader.settings import settings
+from rubric import ArchivedRubric
 from rubric.governance import report_changes, rubric_changes
+from rubric.rubrics import VERSION_PATTERN
 from rubric.scoring.scorer import ensure_gradable
+
+LESSON_PATTERN = r"^L[0-9]{2}$"
+HASH_PATTERN = r"^[0-9a-f]{64}$"
+RULES = {"lesson": LESSON_PATTERN, "version": VERSION_PATTERN, "content_hash": HASH_PATTERN}
+MAX_LENGTH = {"lesson": 3, "version": 32, "content_hash": 64}
 
 
 class ItemDiff(BaseModel):
@@ -57,6 +70,7 @@ class RegradePreview(BaseModel):
     lesson: str
     current_version: str
     new_version: str
+    content_hash: str  # of the new version's content: a commit names it, and is refused if it changed
     rubric_changes: dict[str, list[str]]  # per old version: what differs in the new one
     entries: list[RegradeEntry]
     elapsed_s: float
@@ -117,7 +131,7 @@ def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric):
     entry = dict(submission_id=submission.id, student=submission.student.name, old_version=grade.rubric_version,
                  new_version=new_rubric.version, old_total=grade.total, new_total=None, max_total=None,
                  changed_items=[])
-    if grade.rubric_version == new_rubric.version:
+    if (grade.rubric_version, grade.rubric_hash) == (new_rubric.version, new_rubric.content_hash):
         return RegradeEntry(**entry, skipped=f"already graded under v{new_rubric.version}"), None
     if grade.completed_at is None:  # its lab check would be evaluated on figures half drawn
         return RegradeEntry(**entry, skipped="its figures and lab check are still being drawn: regrade it once "
@@ -148,17 +162,41 @@ def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric):
     return RegradeEntry(**entry), new
 
 
+def _check(**fields: str) -> None:
+    """Invalid naming each field (lesson, version, content_hash) that cannot name a rubric version: a page's form
+    sends any text, and such a value must be a clear 422, not a failed lookup."""
+    errors = [{"field": name, "rule": f"must match {RULES[name]}, at most {MAX_LENGTH[name]} characters"}
+              for name, value in fields.items()
+              if len(value) > MAX_LENGTH[name] or not re.fullmatch(RULES[name], value)]
+    if errors:
+        raise Invalid("invalid regrade request", errors)
+
+
+def _old_rubric(session: Session, course: Course, grade: Grade):
+    """The rubric a grade was scored under, by its content hash; a grade stored with no such row reads the course's."""
+    return (stored_version(session, grade.rubric_lesson, grade.rubric_version, grade.rubric_hash)
+            or get_version(session, grade.rubric_lesson, grade.rubric_version, course_id=course.id))
+
+
 def _compute(session: Session, course: Course, lesson: str, version: str):
     started = time.perf_counter()
-    new_rubric = get_version(session, lesson, version)
-    ensure_gradable(new_rubric)
-    graded = _graded(session, course, lesson)
-    old_rubrics = {v: get_version(session, lesson, v) for v in sorted({g.rubric_version for _, g in graded})}
-    results = [_regrade_one(s, g, old_rubrics[g.rubric_version], new_rubric) for s, g in graded]
+    try:
+        new_rubric = get_version(session, lesson, version, course_id=course.id)
+        current = course_version(session, course.id, lesson)
+        graded = _graded(session, course, lesson)
+        old_rubrics = {g.rubric_hash: _old_rubric(session, course, g) for _, g in graded}
+    except LookupError as exc:  # another course's version is unknown here too, and never named
+        raise NotFound(str(exc)) from exc
+    try:
+        ensure_gradable(new_rubric)
+    except ArchivedRubric as exc:
+        raise Conflict(str(exc)) from exc
+    results = [_regrade_one(s, g, old_rubrics[g.rubric_hash], new_rubric) for s, g in graded]
     preview = RegradePreview(
-        course=course.name, lesson=lesson, current_version=course_version(session, course.id, lesson),
-        new_version=new_rubric.version,
-        rubric_changes={v: rubric_changes(r, new_rubric) for v, r in old_rubrics.items() if v != new_rubric.version},
+        course=course.name, lesson=lesson, current_version=current, new_version=new_rubric.version,
+        content_hash=new_rubric.content_hash,
+        rubric_changes={r.version: rubric_changes(r, new_rubric) for r in old_rubrics.values()
+                        if r.content_hash != new_rubric.content_hash},
         entries=[entry for entry, _ in results], elapsed_s=time.perf_counter() - started)
     return preview, results, new_rubric
 
@@ -166,15 +204,24 @@ def _compute(session: Session, course: Course, lesson: str, version: str):
 def preview_regrade(session: Session, *, course: Course, lesson: str, version: str) -> RegradePreview:
     """What regrading every current grade of the course's lesson under `version` would change; writes nothing.
 
-    LookupError for an unknown version, rubric.ArchivedRubric for one that can no longer grade."""
+    NotFound for a version the course may not read, Conflict for one that can no longer grade."""
+    _check(lesson=lesson, version=version)
     preview, _, _ = _compute(session, course, lesson, version)
     session.rollback()  # recording shipped versions is the only write a preview may cause; keep none
     return preview
 
 
-def commit_regrade(session: Session, *, course: Course, lesson: str, version: str, user: User) -> tuple[Regrade, RegradePreview]:
-    """Regrade under `version` and write it (commits): new current grades, the old ones superseded and kept."""
+def commit_regrade(session: Session, *, course: Course, lesson: str, version: str, content_hash: str,
+                   user: User) -> tuple[Regrade, RegradePreview]:
+    """Regrade under `version` and write it (commits): new current grades, the old ones superseded and kept.
+    `content_hash`: the content its preview showed; Conflict if the version the course reads now has other content."""
+    _check(lesson=lesson, version=version, content_hash=content_hash)
     preview, results, new_rubric = _compute(session, course, lesson, version)
+    if new_rubric.content_hash != content_hash:
+        session.rollback()
+        rule = (f"previewed {content_hash[:12]}, but {lesson} v{version} now has content "
+                f"{new_rubric.content_hash[:12]}; preview again")
+        raise Conflict(f"content_hash: {rule}", [{"field": "content_hash", "rule": rule}])
     now = utcnow()
     regrade = Regrade(course_id=course.id, lesson=lesson, version=new_rubric.version, committed_by_id=user.id,
                       committed_at=now, regraded=0, changed=len(preview.changed),
@@ -191,7 +238,11 @@ def commit_regrade(session: Session, *, course: Course, lesson: str, version: st
                             report=report, execution_s=preview.elapsed_s / max(len(results), 1), complete=True,
                             regrade=regrade, now=now)
         regrade.regraded += 1
-    session.commit()
+    try:
+        session.commit()
+    except IntegrityError as exc:  # the one-current-grade index: another commit got there first
+        session.rollback()
+        raise Conflict("another regrade of this course committed at the same time; preview again") from exc
     return regrade, preview
 
 
@@ -203,9 +254,9 @@ def regrade_records(session: Session, *, course: Course, lesson: str | None = No
     return [record(r, course) for r in session.scalars(query.order_by(Regrade.id.desc()))]
 
 
-def rubric_versions(session: Session, lesson: str) -> list[RubricVersion]:
-    """Every rubric version of the lesson the service knows, oldest first: the shipped ones are recorded on first
-    sight (commits), the published ones are there already."""
-    rows = sync_shipped(session, lesson)
+def rubric_versions(session: Session, *, course: Course, lesson: str) -> list[RubricVersion]:
+    """The rubric versions of the lesson the course may read, oldest first: the shipped ones, recorded on first sight
+    (commits), and the course's own published ones; another course's are never listed."""
+    rows = course_versions(session, course.id, lesson)
     session.commit()
     return rows

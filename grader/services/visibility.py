@@ -2,8 +2,11 @@
 
 Staff (instructors and auditors of the course) see everything. A student sees an item's score and feedback at once
 (immediate), from the due date that applies to them (after_due: their extension's where granted) or once the
-assignment is released (on_release). A withheld item keeps its question, points and the student's own prediction;
-its score, verdict, evidence and feedback are not shown, and the totals count the shown items only.
+assignment is released (on_release). A submission outside any assignment (a free one) withholds whatever an
+assignment of its course for the lesson still withholds from that student, open or not yet open: the same sheet sent
+without `assignment_id` must not tell what the assignment keeps back. A withheld item keeps its question, points and
+the student's own prediction; its score, verdict, evidence and feedback are not shown, the totals count the shown
+items only, and the lab check waits until nothing is withheld.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ from dataclasses import dataclass, field
 from functools import cached_property
 from datetime import datetime
 
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.core.rubrics import current_grade
@@ -27,15 +31,30 @@ def visibility_of(assignment: Assignment, item_id: str) -> str:
 
 
 def withheld_items(*, session: Session, submission: Submission, user: User, now: datetime) -> dict[str, str]:
-    """{item id: why `user` may not see its score and feedback yet}; empty for staff of the submission's course."""
-    assignment = submission.assignment
-    if assignment is None or (user.role in STAFF and user.course_id == submission.course_id):
+    """{item id: why `user` may not see its score and feedback yet}; empty for staff of the submission's course.
+    A free submission's items are withheld while any assignment of the course for its lesson withholds them."""
+    if user.role in STAFF and user.course_id == submission.course_id:
         return {}
+    if submission.assignment is not None:
+        return _withheld_by(session, submission.assignment, submission.student, now)
+    ids = set(item_ids(submission.lesson, submission.part))
+    hidden: dict[str, str] = {}
+    for assignment in session.scalars(select(Assignment).where(
+            Assignment.course_id == submission.course_id, Assignment.lesson == submission.lesson)
+            .order_by(Assignment.id)):
+        for i, reason in _withheld_by(session, assignment, submission.student, now).items():
+            if i in ids:
+                hidden.setdefault(i, reason)
+    return hidden
+
+
+def _withheld_by(session: Session, assignment: Assignment, student: User, now: datetime) -> dict[str, str]:
+    """{item id: why} of the items of `assignment` it withholds from `student` at `now`."""
     why: dict[str, str | None] = {Visibility.IMMEDIATE: None}
     ids = item_ids(assignment.lesson, assignment.part)
     kinds = {visibility_of(assignment, i) for i in ids}
     if Visibility.AFTER_DUE in kinds:
-        due = dates_for(session=session, assignment=assignment, student=submission.student).due_at
+        due = dates_for(session=session, assignment=assignment, student=student).due_at
         why[Visibility.AFTER_DUE] = None if now >= due else (
             f"shown after the due date, {iso(due, assignment.course.timezone)}")
     if Visibility.ON_RELEASE in kinds:
@@ -48,7 +67,8 @@ def withheld_items(*, session: Session, submission: Submission, user: User, now:
 def shown_report(report: dict, hidden: dict[str, str]) -> dict:
     """The stored report as a student may see it: each withheld item keeps its question, points and the student's
     own prediction, but its score is None and its feedback says when it will be shown; the total counts the shown
-    items only and `pending` says which points are still to come. Nothing is regraded on release."""
+    items only and `pending` says which points are still to come. The lab check (its conditions' evidence is
+    measured against the same tolerances) is left out until nothing is withheld. Nothing is regraded on release."""
     if not hidden:
         return report
     items, total, shown_max, pending_points = [], 0.0, 0.0, 0.0
@@ -66,7 +86,8 @@ def shown_report(report: dict, hidden: dict[str, str]) -> dict:
     max_total = shown_max + pending_points
     note = (f"{pending_points:g} of {max_total:g} points pending ({', '.join(names)}): "
             + "; ".join(sorted(set(hidden.values()))))
-    return {**report, "items": items, "total": round(total, 6), "max_total": max_total, "pending": note}
+    return {**report, "items": items, "total": round(total, 6), "max_total": max_total, "pending": note,
+            "check": None}
 
 
 @dataclass(frozen=True)
@@ -82,8 +103,7 @@ class GradeView:
 
     @property
     def item_count(self) -> int:
-        assignment = self.submission.assignment
-        return len(item_ids(assignment.lesson, assignment.part)) if assignment is not None else 0
+        return len(item_ids(self.submission.lesson, self.submission.part))
 
     @property
     def nothing_shown(self) -> str | None:

@@ -73,7 +73,8 @@ def test_regrade_access_rules(api):
     assert api.client.get("/v1/courses/l03/regrade-preview?version=9", headers=api.as_("prof")).status_code == 404
     archived = api.client.get("/v1/courses/l03/regrade-preview?version=1", headers=api.as_("prof"))
     assert archived.status_code == 409 and "archived" in archived.json()["detail"]
-    commit = {"lesson": "L03", "version": "3"}
+    previewed = api.client.get(preview, headers=api.as_("prof")).json()["content_hash"]
+    commit = {"lesson": "L03", "version": "3", "content_hash": previewed}
     assert api.client.post("/v1/courses/l03/regrades", json=commit, headers=api.as_("tess")).status_code == 403
     assert api.client.post("/v1/courses/l03/regrades", json=commit, headers=api.as_("alice")).status_code == 403
     bad = api.client.post("/v1/courses/l03/regrades", json=commit | {"force": True}, headers=api.as_("prof"))
@@ -82,8 +83,9 @@ def test_regrade_access_rules(api):
 
 
 def test_committing_with_no_graded_submission_records_the_course_version(api):
-    api.client.post("/v1/rubrics/versions", json=rubric_v3(), headers=api.as_("prof"))
-    response = api.client.post("/v1/courses/l03/regrades", json={"version": "3"}, headers=api.as_("prof"))
+    published = api.client.post("/v1/rubrics/versions", json=rubric_v3(), headers=api.as_("prof")).json()
+    commit = {"version": "3", "content_hash": published["content_hash"]}
+    response = api.client.post("/v1/courses/l03/regrades", json=commit, headers=api.as_("prof"))
     assert response.status_code == 201, response.text
     body = response.json()
     assert (body["version"], body["committed_by"], body["regraded"], body["changed"]) == ("3", "prof", 0, 0)

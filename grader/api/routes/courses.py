@@ -14,20 +14,24 @@ router = APIRouter(prefix="/courses", tags=["courses"], responses=errors(401, 40
 
 
 def course_public(row: Course) -> CoursePublic:
-    return CoursePublic(name=row.name, timezone=row.timezone, created_at=row.created_at)
+    return CoursePublic(name=row.name, timezone=row.timezone, free_submissions=row.free_submissions,
+                        created_at=row.created_at)
 
 
 @router.get("/{course}", response_model=CoursePublic)
 def get_course(course: MemberCourse):
-    """The course's settings: its time zone (anyone in the course)."""
+    """The course's settings: its time zone and whether students may submit outside assignments (anyone in the
+    course)."""
     return course_public(course)
 
 
 @router.patch("/{course}", response_model=CoursePublic, responses=errors(413))
 def update_course(course: InstructorCourse, body: CourseUpdate, session: SessionDep):
-    """Set the course's time zone, an IANA name (instructors). Times stay stored in UTC; pages and refusal messages
-    show them in this zone. An unknown zone is 422 naming the field."""
-    return course_public(courses.set_timezone(session=session, course=course, timezone=body.timezone))
+    """Change the course's settings (instructors): its time zone, an IANA name (times stay stored in UTC; pages and
+    refusal messages show them in this zone), and whether students may submit outside assignments. An unknown zone
+    is 422 naming the field, nothing changed."""
+    return course_public(courses.update_settings(session=session, course=course, timezone=body.timezone,
+                                                 free_submissions=body.free_submissions))
 
 
 @router.get("/{course}/submissions", response_model=list[SubmissionPublic])

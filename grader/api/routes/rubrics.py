@@ -1,6 +1,7 @@
 """Rubric versions (list, publish) and a course's regrades (preview, commit, history), for its instructors.
 
-Publishing and committing are instructor-only and recorded with who and when; auditors may read both.
+Publishing and committing are instructor-only and recorded with who and when; auditors may read both. A published
+version belongs to its publisher's course: no other course lists, previews or commits it.
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ from grader.schemas import UtcDateTime
 from grader.services import access
 from grader.services.errors import field_errors
 from grader.services.regrade import (
+    HASH_PATTERN,
+    LESSON_PATTERN,
     RegradePreview,
     RegradeRecord,
     commit_regrade,
@@ -28,13 +31,13 @@ from grader.services.regrade import (
     regrade_records,
     rubric_versions,
 )
-from rubric import ArchivedRubric
 from rubric.governance import RubricGovernanceError
+from rubric.rubrics import VERSION_PATTERN
 from rubric.specs import describe_errors
 
-LESSON = r"^L[0-9]{2}$"
-VERSION = r"^[0-9]+(\.[0-9]+)*$"
-CONFLICT = errors(409, _409="Refused by rubric governance, an archived version, or a concurrent regrade")
+LESSON, VERSION = LESSON_PATTERN, VERSION_PATTERN
+CONFLICT = errors(409, _409="Refused by rubric governance, an archived version, content other than the preview's, "
+                             "or a concurrent regrade")
 router = APIRouter(tags=["rubrics"], responses=errors(401, 403, 422))
 
 
@@ -53,6 +56,8 @@ class RegradeRequest(BaseModel):
 
     lesson: Annotated[str, Field(pattern=LESSON)] = "L03"
     version: Annotated[str, Field(pattern=VERSION, max_length=32)]
+    # The preview's content_hash: the commit is refused (409) if the version's content is not what was previewed.
+    content_hash: Annotated[str, Field(pattern=HASH_PATTERN)]
 
 
 def _public(row: RubricVersion) -> RubricVersionPublic:
@@ -63,32 +68,31 @@ def _public(row: RubricVersion) -> RubricVersionPublic:
 
 @router.get("/rubrics/{lesson}/versions", response_model=list[RubricVersionPublic])
 def list_versions(lesson: Annotated[str, Path(pattern=LESSON)], session: SessionDep, user: StaffUser):
-    """Every rubric version of a lesson the service knows, oldest first: shipped with it or published (staff)."""
-    return [_public(r) for r in rubric_versions(session, lesson)]
+    """The rubric versions of a lesson the caller's course may use, oldest first: shipped with the service or published
+    by the course's instructors (staff)."""
+    return [_public(r) for r in rubric_versions(session, course=user.course, lesson=lesson)]
 
 
 @router.post("/rubrics/versions", response_model=RubricVersionPublic, status_code=status.HTTP_201_CREATED,
              responses={**errors(413), **CONFLICT})
 def publish(session: SessionDep, user: CurrentUser, content: Annotated[dict[str, Any], Body()]):
-    """Publish a rubric version (the same fields as a rubric/lessons YAML file, as JSON). Governance refuses a
-    change to a version any grade used and a changed tolerance without a new review record (409)."""
+    """Publish a rubric version for the caller's course (the same fields as a rubric/lessons YAML file, as JSON).
+    A published version never changes: other content under a version the course published or the service ships is
+    refused (409), as is a changed tolerance without a new review record; identical content answers the stored one."""
 
     access.require_instructor(user, action="publish rubric versions")
     try:
         row = store.publish(session, content=content, user=user)
+        session.commit()
     except ValidationError as exc:
         return error(422, "invalid rubric", field_errors(describe_errors(exc)))
     except RubricGovernanceError as exc:
         raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from exc
-    session.commit()
+    except IntegrityError as exc:  # the same version published at the same moment by another instructor
+        session.rollback()
+        raise HTTPException(status.HTTP_409_CONFLICT, "this version was published at the same time; list the "
+                                                      "versions and publish again if it differs") from exc
     return _public(row)
-
-
-def _version_or_404(session, lesson: str, version: str):
-    try:
-        return store.get_version(session, lesson, version)
-    except LookupError as exc:
-        raise HTTPException(status.HTTP_404_NOT_FOUND, str(exc)) from exc
 
 
 @router.get("/courses/{course}/regrade-preview", response_model=RegradePreview,
@@ -96,30 +100,20 @@ def _version_or_404(session, lesson: str, version: str):
 def regrade_preview(row: StaffCourse, session: SessionDep,
                     version: Annotated[str, Query(pattern=VERSION, max_length=32)],
                     lesson: Annotated[str, Query(pattern=LESSON)] = "L03"):
-    """Per student, the old and new totals and each item that changes and why; nothing is written."""
-
-    _version_or_404(session, lesson, version)
-    try:
-        return preview_regrade(session, course=row, lesson=lesson, version=version)
-    except ArchivedRubric as exc:
-        raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from exc
+    """Per student, the old and new totals and each item that changes and why, and the content_hash a commit names;
+    nothing is written."""
+    return preview_regrade(session, course=row, lesson=lesson, version=version)
 
 
 @router.post("/courses/{course}/regrades", response_model=RegradeRecord, status_code=status.HTTP_201_CREATED,
              responses={**errors(404, 413), **CONFLICT})
 def regrade_commit(row: StaffCourse, request: RegradeRequest, session: SessionDep, user: CurrentUser):
-    """Regrade the course's lesson under the version and keep the old grades; later submissions use it too."""
+    """Regrade the course's lesson under the version whose content_hash the preview showed, keeping the old grades;
+    later submissions use it too."""
 
     access.require_instructor(user, action="commit a regrade")
-    _version_or_404(session, request.lesson, request.version)
-    try:
-        regrade, _ = commit_regrade(session, course=row, lesson=request.lesson, version=request.version, user=user)
-    except ArchivedRubric as exc:
-        raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from exc
-    except IntegrityError as exc:
-        session.rollback()
-        raise HTTPException(status.HTTP_409_CONFLICT, "another regrade of this course committed at the same time; "
-                                                      "preview again") from exc
+    regrade, _ = commit_regrade(session, course=row, lesson=request.lesson, version=request.version,
+                                content_hash=request.content_hash, user=user)
     return record(regrade, row)
 
 
