@@ -55,12 +55,29 @@ class Settings(BaseSettings):
     max_body_bytes: int = Field(1_000_000, gt=0)
     # A sheet is about 6 levels deep; deeper JSON is refused before anything walks it.
     max_json_depth: int = Field(32, ge=4, le=200)
+    # A request's whole body must arrive within this long (408 otherwise) before it takes one of the api_threads
+    # admission slots: stalled bodies once held every slot and /v1/health timed out.
+    body_deadline_s: float = Field(10.0, gt=0, le=300)
+    # Requests one client address may have in flight at once (429 beyond), from arrival to answer. Behind a proxy,
+    # uvicorn must trust its X-Forwarded-For (FORWARDED_ALLOW_IPS), or every client counts as the proxy.
+    client_max_in_flight: int = Field(20, ge=1, le=10_000)
     # Per API token, in the `limits` notation ("10/minute", "100/hour"): each submission queues real Genesis runs.
     rate_limit_submissions: str = "10/minute"
     # Where the counts live: memory:// for one API process (embedded); redis://... when several API processes serve.
     rate_limit_storage_url: str = "memory://"
+    # A page sign-in lasts until it has been idle this long, and never beyond the absolute lifetime (nor its token's
+    # expiry): a cookie left on a shared lab machine stops working the same day, a stolen one within a week.
+    session_idle_s: float = Field(12 * 3600.0, gt=0)
+    session_lifetime_s: float = Field(7 * 24 * 3600.0, gt=0)
+    # A new API token expires after this many days (`grader admin token --expires-in` chooses per token): about a
+    # term, so a leaked token does not outlive the course.
+    token_lifetime_days: int = Field(180, ge=1, le=3650)
+    # Per staff member, audit re-runs asked for (each queues a fresh Genesis run that no reuse can shorten).
+    rate_limit_audit_reruns: str = "20/hour"
+    # Case runs one student may have waiting or running at once (a whole sheet queues at most 9).
+    student_waiting_runs_max: int = Field(27, ge=1)
 
-    @field_validator("rate_limit_submissions")
+    @field_validator("rate_limit_submissions", "rate_limit_audit_reruns")
     @classmethod
     def _a_rate_limit(cls, value: str) -> str:
         parse(value)  # raises ValueError naming the bad notation

@@ -4,11 +4,32 @@ from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Mapping, Sequence
+import re
+from collections.abc import Iterable, Mapping, Sequence
 
 from .scoring import GradeReport
 
 CSV_FIXED_COLUMNS = ("student", "rubric_version", "total", "max_total", "complete")
+# A spreadsheet evaluates a cell starting with one of these as a formula (OWASP's CSV injection list).
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+
+
+def spreadsheet_safe(cell: object) -> object:
+    """The cell, with a leading ' where a spreadsheet would evaluate it (a student id `=HYPERLINK(...)`, `@SUM(...)`,
+    `-2+3`); a plain number such as a penalty `-5` stays a number."""
+    text = str(cell)
+    if text.startswith(FORMULA_STARTS) and not _NUMBER.fullmatch(text):
+        return "'" + text
+    return cell
+
+
+def csv_text(rows: Iterable[Sequence[object]]) -> str:
+    """CSV text of the rows, every cell through spreadsheet_safe: the one writer of every CSV export."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerows([spreadsheet_safe(cell) for cell in row] for row in rows)
+    return out.getvalue()
 
 
 def _number(value: float) -> str:
@@ -30,16 +51,14 @@ def grades_csv(reports: Sequence[tuple[str, GradeReport]], *,
     item_ids: list[str] = []
     for _, report in reports:
         item_ids += [i.id for i in report.items if i.id not in item_ids]
-    out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
     traced = ["submission_id", "submitted_at"] if submissions is not None else []
-    writer.writerow([CSV_FIXED_COLUMNS[0], *traced, *CSV_FIXED_COLUMNS[1:], *item_ids])
+    rows = [[CSV_FIXED_COLUMNS[0], *traced, *CSV_FIXED_COLUMNS[1:], *item_ids]]
     for n, (student, report) in enumerate(reports):
         scores = {i.id: ("" if i.verdict == "inconclusive" else _number(i.score)) for i in report.items}
         trace = [str(submissions[n][0]), submissions[n][1]] if submissions is not None else []
-        writer.writerow([student, *trace, report.rubric_version, _number(report.total), _number(report.max_total),
-                         str(report.complete).lower(), *(scores.get(i, "") for i in item_ids)])
-    return out.getvalue()
+        rows.append([student, *trace, report.rubric_version, _number(report.total), _number(report.max_total),
+                     str(report.complete).lower(), *(scores.get(i, "") for i in item_ids)])
+    return csv_text(rows)
 
 
 GRADESCOPE_VISIBILITIES = ("visible", "after_due_date", "after_published", "hidden")

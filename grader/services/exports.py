@@ -3,8 +3,6 @@ Gradescope results.json, and the evidence files a case run wrote. The API and th
 
 from __future__ import annotations
 
-import csv
-import io
 from pathlib import Path
 
 from sqlalchemy import select
@@ -15,7 +13,7 @@ from grader.models import Assignment, CaseRun, Course, Grade, Submission
 from grader.services import assignments
 from grader.services.errors import Conflict, NotFound
 from grader.services.visibility import visibility_of
-from rubric.exports import grades_csv, gradescope_results
+from rubric.exports import csv_text, grades_csv, gradescope_results
 from rubric.scoring import GradeReport
 
 # What a case run writes and may be downloaded, with its media type. Nothing else is ever served from its folder.
@@ -47,14 +45,12 @@ def course_grades_csv(*, session: Session, course: Course, latest: bool = False)
 def counted_grades_csv(*, session: Session, assignment: Assignment) -> tuple[str, str]:
     """(file name, CSV) of the assignment's counted grades: student, counted score, raw score, penalty, attempt,
     submission and when it was submitted (UTC)."""
-    out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(COUNTED_COLUMNS)
+    rows: list[list] = [list(COUNTED_COLUMNS)]
     for c in assignments.counted_grades(session=session, assignment=assignment):
         r = assignments.counted_public(c)
-        writer.writerow([r.student, f"{r.counted_score:g}", f"{r.raw_score:g}", f"{r.max_score:g}", f"{r.penalty:g}",
-                         r.late_seconds, r.attempt, r.submission_id, r.submitted_at.isoformat()])
-    return f"{assignment.course.name}-assignment-{assignment.id}-grades.csv", out.getvalue()
+        rows.append([r.student, f"{r.counted_score:g}", f"{r.raw_score:g}", f"{r.max_score:g}", f"{r.penalty:g}",
+                     r.late_seconds, r.attempt, r.submission_id, r.submitted_at.isoformat()])
+    return f"{assignment.course.name}-assignment-{assignment.id}-grades.csv", csv_text(rows)
 
 
 def gradescope(*, session: Session, submission: Submission) -> dict:

@@ -75,3 +75,29 @@ def test_operators_get_flower_on_the_same_broker_and_loopback_only(compose):
     assert "--broker=redis://redis:6379/0" in flower["command"]
     assert compose["x-service-env"]["BROKER_URL"] == "redis://redis:6379/0"
     assert all(port.startswith("127.0.0.1:") for port in flower["ports"])
+
+
+def test_the_api_is_reached_only_through_a_tls_and_buffering_proxy(compose):
+    """Slow clients (issue 26): nginx reads headers and whole bodies under its own timeouts before the API sees a
+    request, terminates TLS, and hands the API the client's address in a header the client cannot write."""
+    from grader.settings import Settings
+
+    services = compose["services"]
+    api, proxy = services["api"], services["proxy"]
+    assert "ports" not in api, "the API is published only through the proxy"
+    assert api["environment"]["FORWARDED_ALLOW_IPS"]  # per-client limits count clients, not the proxy
+    assert proxy["image"].startswith("nginx:") and {"443:443", "80:80"} <= set(proxy["ports"])
+    assert proxy["depends_on"]["api"]["condition"] == "service_healthy"
+    config_mount = next(v for v in proxy["volumes"] if v.endswith(":/etc/nginx/nginx.conf:ro"))
+    config = (ROOT / config_mount.split(":")[0]).read_text()
+    assert "proxy_pass http://grader_api;" in config and "server api:8000;" in config
+    assert "proxy_request_buffering on;" in config and "proxy_request_buffering off" not in config
+    assert "listen 443 ssl;" in config and "ssl_certificate " in config
+    assert "proxy_set_header X-Forwarded-For $remote_addr;" in config  # replaced, never appended to
+    for directive in ("client_header_timeout", "client_body_timeout"):
+        seconds = int(config.split(f"{directive} ")[1].split("s;")[0])
+        assert seconds <= Settings().body_deadline_s, directive
+    limit = config.split("client_max_body_size ")[1].split(";")[0]
+    assert int(limit) == Settings().max_body_bytes
+    assert any(v.startswith("./docker/tls:") for v in proxy["volumes"])
+    assert "*.pem" in (ROOT / ".gitignore").read_text()

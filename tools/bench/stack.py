@@ -114,7 +114,9 @@ def service_stack(kind: str, folder: Path, *, students: int = 1) -> Iterator[Sta
         env = dict(os.environ, DATABASE_URL=database_url, BROKER_URL=broker_url, DATA_DIR=str(data_dir),
                    ARTIFACTS_DIR=str(data_dir / "artifacts"), PYTHONPATH=str(ROOT),
                    # The benchmark submits far faster than a student may; the limit is not what it measures.
-                   RATE_LIMIT_SUBMISSIONS="100000/minute")
+                   RATE_LIMIT_SUBMISSIONS="100000/minute", STUDENT_WAITING_RUNS_MAX="100000",
+                   # Its concurrent clients all come from 127.0.0.1, which the per-client cap would count as one.
+                   CLIENT_MAX_IN_FLIGHT="10000")
         port = free_port()
         api = start_api(env, port, data_dir / "api.log")
         cleanup.callback(stop, api)
