@@ -5,7 +5,8 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, AwareDatetime, BaseModel, ConfigDict, Field, ValidationInfo, field_validator
+from pydantic import (AfterValidator, AwareDatetime, BaseModel, ConfigDict, Field, ValidationInfo, field_validator,
+                      model_validator)
 from pydantic_core import PydanticCustomError
 
 from grader.core.states import AssignmentParts
@@ -28,8 +29,10 @@ class SubmissionCreate(Strict):
 
     sheet: dict[str, Any] = Field(description="The lesson's prediction sheet, including the student's case configs.")
     backend: Literal["cpu", "rocm", "cuda"] | None = Field(
-        None, description="Run every case on this backend instead of the one each config names. Never substituted.")
-    force_rerun: bool = Field(False, description="Measure every case afresh instead of reusing stored measurements.")
+        None, description="Staff only: run every case on this backend instead of the one each config names. Never "
+                          "substituted; refused (409) when no worker listens on its queue.")
+    force_rerun: bool = Field(False, description="Staff only: measure every case afresh instead of reusing stored "
+                                                 "measurements.")
     assignment_id: int | None = Field(None, ge=1, le=2**31 - 1, description=(
         "Submit to this assignment of the caller's course: the sheet then answers exactly its items, and it is "
         "refused before it opens, after its hard close (or the student's extension) and beyond its attempt limit."))
@@ -316,10 +319,21 @@ class RosterEntry(BaseModel):
 class CoursePublic(BaseModel):
     name: str
     timezone: str = Field(description="IANA time zone the course's times are shown in (stored in UTC)")
+    free_submissions: bool = Field(description=(
+        "Whether students may submit outside an assignment (what an assignment withholds is withheld there too)"))
     created_at: UtcDateTime
 
 
 class CourseUpdate(Strict):
-    """Settings of a course an instructor may change."""
+    """Settings of a course an instructor may change: at least one; one left out is kept."""
 
-    timezone: str = Field(min_length=1, max_length=64, description="An IANA time zone name, e.g. Europe/Berlin")
+    timezone: str | None = Field(None, min_length=1, max_length=64,
+                                 description="An IANA time zone name, e.g. Europe/Berlin")
+    free_submissions: bool | None = Field(None, description=(
+        "Whether students may submit outside an assignment (staff always may)"))
+
+    @model_validator(mode="after")
+    def _some_setting(self) -> "CourseUpdate":
+        if self.timezone is None and self.free_submissions is None:
+            raise ValueError("name at least one setting: timezone, free_submissions")
+        return self

@@ -44,7 +44,9 @@ def transport_options(url: str) -> dict:
     """Per-transport options: kombu passes SQLAlchemy-transport options to create_engine, so none go there."""
     if url.startswith("redis"):
         # An unacked message returns after this; the reconciler usually re-sends sooner.
-        return {"visibility_timeout": int(settings.lease_s) + 60}
+        # One list per priority 0-9 (kombu's default is 0, 3, 6, 9, which would merge a student's fair priorities,
+        # grader.core.lifecycle.FAIR_PRIORITIES, into one first-come-first-served list).
+        return {"visibility_timeout": int(settings.lease_s) + 60, "priority_steps": list(range(10))}
     if url.startswith("filesystem"):
         folder = settings.data_dir.absolute() / "broker"
         (folder / "processed").mkdir(parents=True, exist_ok=True)

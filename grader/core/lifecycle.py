@@ -27,11 +27,19 @@ from grader.core import content_key
 from grader.core.states import TERMINAL, CaseRunPurpose, CaseRunState, SubmissionState
 
 HOST = socket.gethostname()
-# Where a message goes in its queue (kombu's Redis and filesystem transports serve the lowest number first; Redis
-# keeps one list per step of 0, 3, 6, 9): a run whose worker died mid-case first, then a queued run whose message was
+# Where a message goes in its queue (kombu's Redis and filesystem transports serve the lowest number first): a run whose worker died mid-case first, then a queued run whose message was
 # lost (a broker restart), then new runs, and last the figures and lab check of a grade already stored (they go on
 # the cpu queue too, so a worker draws them only when no case waits: at a deadline every grade comes first).
 RERUN_PRIORITY, REQUEUED_PRIORITY, NEW_PRIORITY, FIGURES_PRIORITY = 0, 3, 6, 9
+# A student's new runs take 4, 5, 6, 7, then 8 for the rest, by how many of that student's runs wait ahead of them
+# (worker.celery_app gives Redis one list per priority 0-9): a student with one run waiting is served before the
+# fourth run of a student who queued nine, so students' runs interleave instead of first come, first served.
+FAIR_PRIORITIES = (4, 5, 6, 7, 8)
+
+
+def fair_priority(waiting_ahead: int) -> int:
+    """The priority of a student's new run with `waiting_ahead` of their own runs already waiting in its queue."""
+    return FAIR_PRIORITIES[min(waiting_ahead, len(FAIR_PRIORITIES) - 1)]
 
 
 def _pid_alive(pid: int | None) -> bool:
@@ -108,9 +116,8 @@ def resend(session: Session, run: CaseRun, *, by: str) -> None:
         grade.superseded_at = now
         submission.status, submission.updated_at = SubmissionState.RUNNING, now
         session.add(Event(submission_id=submission.id, state=SubmissionState.RUNNING,
-                          detail=f"case run {run.name} resent by {by}: grade {grade.total:g} / "
-                                 f"{grade.max_total:g} (v{grade.rubric_version}) kept in the history, superseded; "
-                                 "graded again when the run finishes"))
+                          detail=f"case run {run.name} resent by {by}: the grade under v{grade.rubric_version} is "
+                                 "kept in the history, superseded; graded again when the run finishes"))
     elif submission.status == SubmissionState.FAILED:
         previous_error = submission.error
         submission.status, submission.error, submission.updated_at = SubmissionState.RUNNING, None, now

@@ -3,8 +3,6 @@ for an audit re-run of a stored case run on another backend, precision or execut
 
 from __future__ import annotations
 
-import csv
-import io
 import re
 from datetime import date, datetime, time
 from typing import Annotated, Any, Literal
@@ -17,9 +15,12 @@ from grader.core.audit import create_audit_rerun
 from grader.core.states import Backend, CaseRunPurpose, CaseRunState, ExecutionMode, Precision
 from grader.models import AuditEntry, CaseRun, Submission, User
 from grader.schemas import as_utc
+from grader.services import quotas
 from grader.services.access import MAX_ID, require_staff
 from grader.services.errors import Conflict, NotFound
 from grader.services.sending import Sender
+from grader.settings import settings
+from rubric.exports import csv_text
 
 Classification = Literal["identical", "within_tolerance", "numeric_drift", "relation_changed", "provenance_violation",
                          "not_compared"]
@@ -97,15 +98,13 @@ def recent_audit_runs(session: Session, user: User, limit: int = 20) -> list[Cas
 
 
 def entries_csv(entries: list[AuditEntry]) -> str:
-    out = io.StringIO()
-    writer = csv.writer(out)
-    writer.writerow(["entry_id", "created_at_utc", "lesson", "case", "left_case_run_id", "right_case_run_id",
-                     "left_variant", "right_variant", "left_genesis", "right_genesis", "classification", "summary"])
+    rows: list[list] = [["entry_id", "created_at_utc", "lesson", "case", "left_case_run_id", "right_case_run_id",
+                         "left_variant", "right_variant", "left_genesis", "right_genesis", "classification", "summary"]]
     for e in entries:
         versions = [((p or {}).get("versions") or {}).get("genesis", "") for p in (e.left_provenance, e.right_provenance)]
-        writer.writerow([e.id, as_utc(e.created_at).isoformat(), e.lesson, e.case, e.left_case_run_id, e.right_case_run_id or "",
-                         e.left_variant, e.right_variant, *versions, e.classification, e.summary])
-    return out.getvalue()
+        rows.append([e.id, as_utc(e.created_at).isoformat(), e.lesson, e.case, e.left_case_run_id, e.right_case_run_id or "",
+                     e.left_variant, e.right_variant, *versions, e.classification, e.summary])
+    return csv_text(rows)
 
 
 def request_rerun(*, session: Session, user: User, case_run_id: int, request: AuditRerunRequest,
@@ -122,6 +121,15 @@ def request_rerun(*, session: Session, user: User, case_run_id: int, request: Au
     if not sender.queue_listeners(request.backend):
         raise Conflict(f"no worker is listening on queue '{request.backend}': the re-run would wait forever; "
                        f"start a worker with `grader worker --queue {request.backend}` and ask again")
+    pending = session.scalar(select(CaseRun).where(
+        CaseRun.source_case_run_id == source.id, CaseRun.purpose == CaseRunPurpose.AUDIT,
+        CaseRun.backend == request.backend, CaseRun.precision == request.precision,
+        CaseRun.mode.is_(None) if request.mode is None else CaseRun.mode == request.mode,
+        CaseRun.status.in_((CaseRunState.QUEUED, CaseRunState.RUNNING))).limit(1))
+    if pending is not None:
+        raise Conflict(f"audit re-run {pending.id} of case run {case_run_id} on {request.backend}/{request.precision}/"
+                       f"{request.mode or 'default'} is already {pending.status}; its entry is written when it ends")
+    quotas.take("audit re-runs", user.id, settings.rate_limit_audit_reruns, field="case_run_id")
     run = create_audit_rerun(session, source=source, backend=request.backend, precision=request.precision,
                              mode=request.mode, user=user)
     session.commit()

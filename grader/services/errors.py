@@ -5,7 +5,8 @@
     ├── Forbidden      the caller's role may not do this in their course             (API 403)
     ├── Conflict       the thing is not in a state that allows it now                (API 409)
     └── Invalid        bad input: each error names the field and the rule            (API 422)
-        └── Refused    a submission its assignment does not take now; Retry-After where waiting helps (API 409/429)
+        └── Refused    a submission its assignment does not take now, or a request past its quota; Retry-After
+                       where waiting helps (API 409/429)
 """
 
 from __future__ import annotations
@@ -40,8 +41,8 @@ class Refused(Invalid):
     """A submission the assignment does not take now; `field` and `rule` say why (with the time that applies).
     `retry_after_s` is set when waiting helps (the hourly limit): the API answers 429 with Retry-After."""
 
-    def __init__(self, field: str, rule: str, retry_after_s: int | None = None):
-        super().__init__("submission refused", [{"field": field, "rule": rule}])
+    def __init__(self, field: str, rule: str, retry_after_s: int | None = None, *, detail: str = "submission refused"):
+        super().__init__(detail, [{"field": field, "rule": rule}])
         self.args = (rule,)
         self.field, self.rule, self.retry_after_s = field, rule, retry_after_s
 

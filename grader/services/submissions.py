@@ -7,18 +7,19 @@ import logging
 from typing import Any
 
 from pydantic import ValidationError
-from sqlalchemy import select
+from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from grader.core import grading, lifecycle
 from grader.core.audit import spec_key
 from grader.core.rubrics import course_rubric
-from grader.core.states import CaseRunState, Role
+from grader.core.states import Backend, CaseRunState, Role
 from grader.models import Assignment, CaseRun, Course, Event, Submission, User, utcnow
 from grader.services import assignments, sheets
-from grader.services.errors import Forbidden, Invalid, Refused, field_errors
+from grader.services.errors import Conflict, Forbidden, Invalid, Refused, field_errors
 from grader.services.sending import Sender
+from grader.settings import settings
 from rubric import describe_errors, with_backend
 
 log = logging.getLogger(__name__)
@@ -69,6 +70,9 @@ def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id
     its cases was never measured it is queued like any other, so no student loses a point to a gap."""
     if user.role not in (Role.STUDENT, Role.INSTRUCTOR):
         raise Forbidden(f"role {user.role} may not submit")
+    if assignment_id is None and user.role == Role.STUDENT and not user.course.free_submissions:
+        raise Refused("assignment_id", f"course {user.course.name} takes a student's submission only to an "
+                                       "assignment (free_submissions is off): name one in assignment_id")
     assignment = None
     attempt = late_seconds = None
     if assignment_id is not None:
@@ -84,8 +88,9 @@ def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id
     except ValidationError as exc:
 
         raise Invalid("invalid sheet", field_errors(describe_errors(exc), prefix="sheet")) from None
+    if user.role != Role.INSTRUCTOR:
+        _refuse_staff_powers(parsed, backend=backend, force_rerun=force_rerun)
     if backend is not None:
-
         specs = [with_backend(spec, backend=backend) for spec in specs]
     if assignment is not None and parsed.lesson != assignment.lesson:
         raise Invalid("invalid sheet", [{"field": "sheet.lesson",
@@ -101,10 +106,13 @@ def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id
         raise Refused("assignment_id", f"attempt {attempt} of assignment {assignment.id} was just taken by another "
                                        f"submission; submit again") from None
     to_grade = lifecycle.reuse_at_admission(session=session, submission=submission)
+    to_send = [run for run in submission.case_runs if run.status == CaseRunState.QUEUED]  # the rest were reused
+    _refuse_unserved_backends(to_send, sender)
+    priorities = _fair_priorities(session, user, submission, to_send)
     if to_grade and sheets.checkpoints_only(parsed):
         book = course_rubric(session, submission.course_id, submission.lesson)
         grading.grade_and_store(session=session, submission=submission, book=book, complete=True, detail=(
-            "{total:g} / {max_total:g} (no case run: graded at once on the lesson's cases as already measured)"))
+            "graded at once: no case run needed, the lesson's cases as already measured"))
         to_grade = False
     session.commit()  # nothing is sent before the submission and all its case runs are durable
     if to_grade:
@@ -113,11 +121,53 @@ def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id
         except Exception:  # stored as 'grading': the reconciler re-sends its grade task after the lease
             log.exception("could not enqueue the grading of submission %s; the reconciler will re-send it",
                           submission.id)
-    for run in submission.case_runs:
-        if run.status != CaseRunState.QUEUED:  # reused when submitted
-            continue
+    for run in to_send:
         try:
-            sender.send_case_run(run.id, run.delivery, run.backend)
+            sender.send_case_run(run.id, run.delivery, run.backend, priority=priorities[run.id])
         except Exception:  # stored and queued in the database: the reconciler re-sends it
             log.exception("could not enqueue case run %s; the reconciler will re-send it", run.id)
     return submission
+
+
+def _refuse_staff_powers(sheet, *, backend: str | None, force_rerun: bool) -> None:
+    """A backend choice and a forced re-run queue runs no reuse can shorten, on queues a course may not serve: staff
+    powers. A student's runs go to the cpu queue and reuse what is already measured."""
+    rules = []
+    if backend is not None:
+        rules.append({"field": "backend", "rule": "only staff choose the backend; leave it out"})
+    if force_rerun:
+        rules.append({"field": "force_rerun", "rule": "only staff force a re-run; leave it false"})
+    for role, spec in sheet.configs.submitted().items():
+        if spec.backend != Backend.CPU:
+            rules.append({"field": f"sheet.configs.{role}.backend",
+                          "rule": "only staff choose the backend; leave it out (cpu)"})
+    if rules:
+        raise Forbidden("a student's submission runs on the cpu queue and reuses measurements", rules)
+
+
+def _refuse_unserved_backends(runs: list[CaseRun], sender: Sender) -> None:
+    """A run on a queue no worker consumes would wait forever: refused at once, as an audit re-run is."""
+    for backend in sorted({run.backend for run in runs}):
+        if not sender.queue_listeners(backend):
+            raise Conflict(f"no worker is listening on queue '{backend}': its case runs would wait forever; "
+                           f"start a worker with `grader worker --queue {backend}` or choose another backend",
+                           [{"field": "backend", "rule": f"a worker must listen on queue '{backend}'"}])
+
+
+def _fair_priorities(session: Session, user: User, submission: Submission, runs: list[CaseRun]) -> dict[int, int]:
+    """Each new run's place in its queue by how many of the student's own runs wait ahead of it
+    (lifecycle.fair_priority), after refusing a student past settings.student_waiting_runs_max."""
+    waiting = dict(session.execute(
+        select(CaseRun.backend, func.count()).join(Submission, CaseRun.submission_id == Submission.id)
+        .where(Submission.student_id == user.id, Submission.id != submission.id,
+               CaseRun.status.in_((CaseRunState.QUEUED, CaseRunState.RUNNING)))
+        .group_by(CaseRun.backend)).all())
+    limit = settings.student_waiting_runs_max
+    if user.role == Role.STUDENT and sum(waiting.values()) + len(runs) > limit:
+        raise Refused("sheet", f"{sum(waiting.values())} of your case runs are still waiting or running and this "
+                               f"sheet needs {len(runs)} more; at most {limit} at once: submit again when some finish")
+    priorities = {}
+    for run in runs:
+        priorities[run.id] = lifecycle.fair_priority(waiting.get(run.backend, 0))
+        waiting[run.backend] = waiting.get(run.backend, 0) + 1
+    return priorities

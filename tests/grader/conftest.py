@@ -14,6 +14,7 @@ class Api:
     client: object
     tokens: dict[str, str]
     sent: list = field(default_factory=list)
+    priorities: list = field(default_factory=list)  # the priority each sent case run was given, in sending order
 
     def as_(self, who: str) -> dict[str, str]:
         return {"Authorization": f"Bearer {self.tokens[who]}"}
@@ -27,6 +28,7 @@ def api(tmp_path, monkeypatch):
     from grader import dispatch
     from grader.core import db
     from grader.main import app
+    from grader.services import quotas
     from grader.settings import settings
 
     url = f"sqlite:///{tmp_path / 'grader.db'}"
@@ -37,8 +39,13 @@ def api(tmp_path, monkeypatch):
     with Session(db.get_engine()) as session:
         tokens = create_people(session, course="l03", other_course="other")
         session.commit()
+    quotas._limiter.cache_clear()  # a fresh count per test: user ids repeat across the tests' databases
     state = Api(client=TestClient(app), tokens=tokens)
-    monkeypatch.setattr(dispatch, "send_case_run", lambda *args: state.sent.append(args))
+    def send_case_run(*args, priority=None):
+        state.sent.append(args)
+        state.priorities.append(priority)
+
+    monkeypatch.setattr(dispatch, "send_case_run", send_case_run)
     yield state
     db.get_engine().dispose()
     db._engine = None

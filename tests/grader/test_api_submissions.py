@@ -40,12 +40,6 @@ def test_a_valid_sheet_stores_case_runs_then_queues_each_on_its_backend(api):
     assert events[0]["state"] == "submitted" and all(e["at"] for e in events)
 
 
-def test_a_backend_request_goes_to_that_queue_only(api):
-    response = post(api, {"sheet": reference_sheet(), "backend": "rocm"})
-    assert response.status_code == 202
-    assert api.sent and {backend for _, _, backend in api.sent} == {"rocm"}
-
-
 def rejected(api, response, field_part: str):
     assert response.status_code == 422, response.text
     body = response.json()

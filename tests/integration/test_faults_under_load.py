@@ -221,10 +221,11 @@ def test_faults_under_load_on_redis_and_postgres(tmp_path, kernel_cache_filled):
             session.commit()
         data_dir, logs = tmp_path / "data", tmp_path / "logs"
         logs.mkdir()
-        # The shipped settings, except the per-token submission rate: one test is a whole class at the deadline.
+        # The shipped settings, except the per-token submission rate and the cap on a student's waiting runs: one
+        # test is a whole class at the deadline.
         env = {k: v for k, v in os.environ.items() if not k.endswith(("_S", "_URL"))} | dict(
             DATABASE_URL=postgres.url, BROKER_URL=redis.url, DATA_DIR=str(data_dir), PYTHONPATH=str(services.ROOT),
-            RATE_LIMIT_SUBMISSIONS="1000/minute") | services.private_kernel_cache(tmp_path)
+            RATE_LIMIT_SUBMISSIONS="1000/minute", STUDENT_WAITING_RUNS_MAX="1000") | services.private_kernel_cache(tmp_path)
         artifacts = data_dir / "artifacts"
         port = services.free_port()
         procs.append(services.start_api(env, port, logs / "api.log"))
@@ -235,6 +236,7 @@ def test_faults_under_load_on_redis_and_postgres(tmp_path, kernel_cache_filled):
         worker, _ = _start_worker(env, "w1", ("cpu", "grade"), logs / "worker-1.log")
         procs.append(worker)
         clients = [Client(f"http://127.0.0.1:{port}", tokens[who]) for who in ("alice", "bob")]
+        staff = Client(f"http://127.0.0.1:{port}", tokens["prof"])  # force_rerun is a staff power
         submitted: list[int] = []
 
         def submit(sheets: list[dict], **options) -> None:
@@ -281,7 +283,7 @@ def test_faults_under_load_on_redis_and_postgres(tmp_path, kernel_cache_filled):
 
         # Wave D with one forced re-measurement of every case, and kill 2 in the middle of one.
         submit([_sheet(), _sheet(0.41), _sheet()])
-        submit([_sheet()], force_rerun=True)
+        submitted.append(staff.submit(_sheet(), force_rerun=True)["id"])
         victim, _ = _kill_mid_case(db, worker, artifacts)
         worker, ready_at = _start_worker(env, "w3", ("cpu", "grade"), logs / "worker-3.log")
         procs.append(worker)

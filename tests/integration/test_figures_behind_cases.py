@@ -21,22 +21,23 @@ def _events(stack, submission_id: int) -> list[Event]:
         return session.scalars(select(Event).where(Event.submission_id == submission_id).order_by(Event.id)).all()
 
 
-def _student_of_another_course(stack, name: str):
-    """A student of the stack's other course, so that the shared class the page tests read stays as they expect."""
+def _instructor_of_another_course(stack, name: str):
+    """An instructor (force_rerun is a staff power) of the stack's other course, so that the shared class the page
+    tests read stays as they expect."""
     from grader.services import accounts
     from grader.client import Client
     from grader.models import Course
 
     with Session(stack.engine) as session:
         course = session.scalar(select(Course).where(Course.name == OTHER_COURSE))
-        user = accounts.get_or_create_user(session=session, course=course, name=name, role="student")
+        user = accounts.get_or_create_user(session=session, course=course, name=name, role="instructor")
         token = accounts.create_token(session=session, user=user)
         session.commit()
     return Client(stack.url, token)
 
 
 def test_a_grade_is_stored_between_cases_and_its_figures_drawn_after_the_cases_queued_meanwhile(stack):
-    client = _student_of_another_course(stack, "olga")
+    client = _instructor_of_another_course(stack, "olga")
     first = client.submit(reference_sheet() | {"student": "olga"})
     client.wait(first["id"], poll_s=0.5, timeout_s=WAIT_LIMIT_S)  # measured (or reused): the next sheet runs nothing
     sheet = reference_sheet() | {"student": "olga"}

@@ -21,8 +21,8 @@ pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 
 def test_worker_killed_mid_case_requeues_and_grades_once(stack):
-    client = stack.client("alice")
-    created = client.submit(reference_sheet(), force_rerun=True)
+    client = stack.client("eve")  # force_rerun is a staff power; eve teaches the other course, so l03's class is untouched
+    created = client.submit(reference_sheet() | {"student": "eve"}, force_rerun=True)
 
     def running_with_evidence():
         for run in case_runs(stack, created["id"]):
@@ -124,8 +124,8 @@ def test_a_whole_worker_killed_mid_case_is_noticed_by_liveness_not_its_lease(sta
                                   cwd=services.ROOT, env=stack.env, stdout=(stack.logs / "reconciler.log").open("ab"),
                                   stderr=subprocess.STDOUT, start_new_session=True)
     try:
-        client = stack.client("bob")
-        created = client.submit(reference_sheet() | {"student": "bob"}, force_rerun=True)
+        client = stack.client("eve")  # a staff power (see the first test)
+        created = client.submit(reference_sheet() | {"student": "eve"}, force_rerun=True)
 
         def running_on_victim():
             pids = set(services.children(victim_worker.pid))
@@ -170,8 +170,8 @@ def test_messages_lost_with_the_broker_are_noticed_at_once(stack):
                                   cwd=services.ROOT, env=stack.env, stdout=(stack.logs / "reconciler.log").open("ab"),
                                   stderr=subprocess.STDOUT, start_new_session=True)
     try:
-        client = stack.client("alice")
-        created = client.submit(reference_sheet(), force_rerun=True)
+        client = stack.client("eve")  # a staff power (see the first test)
+        created = client.submit(reference_sheet() | {"student": "eve"}, force_rerun=True)
         wait_until(lambda: any(r.status == "running" for r in case_runs(stack, created["id"])), "a run started")
         purge = "from worker.celery_app import app; print(app.connection_for_write().default_channel.queue_purge('cpu'))"
         purged = subprocess.run([sys.executable, "-c", purge], env=stack.env, cwd=services.ROOT, capture_output=True,
