@@ -15,6 +15,7 @@ from starlette.datastructures import Headers
 from starlette.requests import Request
 from starlette.responses import Response
 
+from grader.api.bodies import replaying
 from grader.api.errors import API_PREFIX, error
 from grader.services.errors import DomainError, Invalid
 
@@ -76,16 +77,7 @@ class BodyDeadline:
             rule = {"field": "body", "rule": f"must arrive whole within {self.deadline_s:g} s of the request"}
             return await refuse(scope, receive, send, 408, "request body too slow", [rule], self.page_error,
                                 headers={"Connection": "close"})
-        body, replayed = b"".join(chunks), False
-
-        async def replay():
-            nonlocal replayed
-            if replayed:
-                return await receive()
-            replayed = True
-            return {"type": "http.request", "body": body, "more_body": False}
-
-        await self.app(scope, replay, send)
+        await self.app(scope, replaying(b"".join(chunks), receive), send)
 
 
 class ClientLimit:

@@ -59,6 +59,20 @@ def value_problems(value: Any, *, max_depth: int) -> list[dict[str, str]]:
     return problems
 
 
+
+def replaying(body: bytes, receive):
+    """An ASGI receive that hands the app the body already read, whole, then defers to the real one (disconnects)."""
+    replayed = False
+
+    async def replay():
+        nonlocal replayed
+        if replayed:
+            return await receive()
+        replayed = True
+        return {"type": "http.request", "body": body, "more_body": False}
+
+    return replay
+
 class BodyGuard:
     """ASGI middleware: 413 for a declared or streamed body over max_bytes (any content type), 422 for a JSON body
     that is not UTF-8, not JSON, too deep or holds NaN/Infinity; the body is read once, whole, and replayed."""
@@ -85,16 +99,7 @@ class BodyGuard:
         body = bytes(buffer)
         if is_json(headers.get("content-type")) and (problems := json_problems(body, max_depth=self.max_depth)):
             return await _send_error(send, 422, "invalid JSON body", problems)
-        replayed = False
-
-        async def replay():
-            nonlocal replayed
-            if replayed:
-                return await receive()
-            replayed = True
-            return {"type": "http.request", "body": body, "more_body": False}
-
-        await self.app(scope, replay, send)
+        await self.app(scope, replaying(body, receive), send)
 
     def _size_rule(self) -> dict[str, str]:
         return {"field": "body", "rule": f"at most {self.max_bytes} bytes"}
