@@ -146,9 +146,16 @@ def _refuse_staff_powers(sheet, *, backend: str | None, force_rerun: bool) -> No
 
 
 def _refuse_unserved_backends(runs: list[CaseRun], sender: Sender) -> None:
-    """A run on a queue no worker consumes would wait forever: refused at once, as an audit re-run is."""
-    for backend in sorted({run.backend for run in runs}):
-        if not sender.queue_listeners(backend):
+    """A run on a GPU queue no worker consumes would wait forever: refused at once, as an audit re-run is. The cpu
+    queue is the service's own and is not asked about (asking costs a broadcast of up to a second per submission).
+    Where the broker cannot be asked, the runs are stored and the reconciler sends them once it answers."""
+    for backend in sorted({run.backend for run in runs} - {Backend.CPU}):
+        try:
+            listening = sender.queue_listeners(backend)
+        except Exception:  # noqa: BLE001 - an unreachable broker says nothing about workers; refuse nothing
+            log.warning("could not ask the broker who listens on queue %s; storing the runs", backend, exc_info=True)
+            continue
+        if not listening:
             raise Conflict(f"no worker is listening on queue '{backend}': its case runs would wait forever; "
                            f"start a worker with `grader worker --queue {backend}` or choose another backend",
                            [{"field": "backend", "rule": f"a worker must listen on queue '{backend}'"}])

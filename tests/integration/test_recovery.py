@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from datetime import timedelta
 
 import pytest
@@ -76,18 +77,28 @@ def test_reconciler_resends_runs_whose_worker_vanished(stack):
     assert grades_of(stack, submission_id) == 1
 
 
-def test_rocm_waits_visibly_then_fails_on_a_worker_without_rocm_never_on_cpu(stack):
-    client = stack.client("alice")
-    created = client.submit(reference_sheet(), backend="rocm")
-    total = created["progress"]["total"]
-    # No rocm worker: every case run is queued, and its message sits on the rocm queue, not consumed by the cpu worker.
+def test_rocm_is_refused_until_a_worker_listens_then_fails_on_one_without_rocm_never_on_cpu(stack):
+    """A backend is a staff power, and a request for one no worker listens on would wait forever: refused at once.
+    Once a worker listens on rocm but has no ROCm device (this machine), each case fails with the provenance error."""
+    with pytest.raises(RuntimeError, match=r"(?s)HTTP 403.*only staff choose the backend"):
+        stack.client("alice").submit(reference_sheet(), backend="rocm")
+    client = stack.client("eve")  # staff of the other course, so l03's class is untouched
+    sheet = reference_sheet() | {"student": "eve"}
+    with pytest.raises(RuntimeError, match=r"(?s)HTTP 409.*no worker is listening on queue 'rocm'"):
+        client.submit(sheet, backend="rocm")
     redis = services.redis_client()
-    assert sum(redis.llen(key) for key in redis.scan_iter("rocm*")) == total  # one list per message priority
-    state = client.submission(created["id"])
-    assert state["status"] == "running" and state["progress"]["queued"] == total
-    # A worker that listens on rocm but has no ROCm device (this machine): each case fails with the provenance error.
+    assert sum(redis.llen(key) for key in redis.scan_iter("rocm*")) == 0  # nothing left waiting on the rocm queue
     rocm = services.start_worker(stack.env, "rocm", stack.logs / "worker-rocm.log")
     try:
+        deadline, created = time.monotonic() + 180, None
+        while created is None:  # refused until the new worker answers the broker's roll call
+            try:
+                created = client.submit(sheet, backend="rocm")
+            except RuntimeError as exc:
+                if "HTTP 409" not in str(exc) or time.monotonic() > deadline:
+                    raise
+                time.sleep(2)
+        total = created["progress"]["total"]
         final = client.wait(created["id"], poll_s=0.5, timeout_s=900)
     finally:
         services.stop(rocm)
