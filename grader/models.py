@@ -9,7 +9,8 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Any
 
-from sqlalchemy import JSON, Boolean, DateTime, Float, ForeignKey, Index, Integer, String, Text, UniqueConstraint, text
+from sqlalchemy import (JSON, Boolean, DateTime, Float, ForeignKey, Index, Integer, LargeBinary, String, Text,
+                        UniqueConstraint, text)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 from grader.core.states import CaseRunPurpose, CaseRunState, SubmissionState
@@ -83,6 +84,23 @@ class WebSession(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
     last_seen_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
     expires_at: Mapped[datetime] = mapped_column(DateTime)
+    revoked_at: Mapped[datetime | None] = mapped_column(DateTime)
+
+    user: Mapped[User] = relationship(lazy="joined")
+
+
+class SignInLink(Base):
+    """A student's single-use sign-in link (`/sign-in/link/SECRET`): only the sha256 of its random secret is stored.
+    Using it opens a page session; it is refused once used, expired, or revoked (by a re-issue)."""
+
+    __tablename__ = "sign_in_links"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id"), index=True)
+    secret_hash: Mapped[str] = mapped_column(String(64), unique=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    expires_at: Mapped[datetime] = mapped_column(DateTime)
+    used_at: Mapped[datetime | None] = mapped_column(DateTime)
     revoked_at: Mapped[datetime | None] = mapped_column(DateTime)
 
     user: Mapped[User] = relationship(lazy="joined")
@@ -241,6 +259,27 @@ class Measurement(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
 
 
+class CaseEvidence(Base):
+    """What a case process left for one case run, stored in the transaction that stores the run's result: every
+    reader takes it from here, so the folder it was written to is only a cache a worker's host may lose. A run that
+    reused a measurement has no row of its own: it reads its measurement's run's (no copy)."""
+
+    __tablename__ = "case_evidence"
+
+    case_run_id: Mapped[int] = mapped_column(ForeignKey("case_runs.id"), primary_key=True)
+    # arrays.npz as the case process wrote it; deferred, so listing a run's files never loads it.
+    arrays: Mapped[bytes | None] = mapped_column(LargeBinary, deferred=True)
+    spec: Mapped[dict[str, Any]]
+    provenance: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    metrics: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    # Captured output, whole up to settings.evidence_output_max_bytes, else its tail after a line saying so.
+    stdout: Mapped[str | None] = mapped_column(Text)
+    stderr: Mapped[str | None] = mapped_column(Text)
+    # Bytes of each stored file as served (grader.services.exports.EVIDENCE names): which files the run has.
+    sizes: Mapped[dict[str, Any]]
+    stored_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+
 class RubricVersion(Base):
     """A rubric version known to the service: shipped with it (rubric/lessons, no publisher, no course: every course
     reads it) or published by an instructor for their course alone, never changed after. Its content is stored whole,
@@ -359,3 +398,152 @@ class Event(Base):
     state: Mapped[str] = mapped_column(String(32))
     detail: Mapped[str | None] = mapped_column(Text)
     at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+
+class LtiRegistration(Base):
+    """An LMS (an LTI 1.3 platform) that may launch this tool into one course: its issuer and the client id it gave
+    this tool, and the platform's endpoints. Launches from it sign people into `course`."""
+
+    __tablename__ = "lti_registrations"
+    __table_args__ = (UniqueConstraint("issuer", "client_id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    course_id: Mapped[int] = mapped_column(ForeignKey("courses.id"), index=True)
+    issuer: Mapped[str] = mapped_column(String(255))
+    client_id: Mapped[str] = mapped_column(String(255))
+    auth_login_url: Mapped[str] = mapped_column(Text)  # the platform's OIDC authorization endpoint
+    auth_token_url: Mapped[str] = mapped_column(Text)  # its OAuth2 token endpoint (grades and roster services)
+    key_set_url: Mapped[str] = mapped_column(Text)  # its JWKS: launches are verified against these keys
+    created_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))  # None: an operator at the CLI
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+    course: Mapped[Course] = relationship(lazy="joined")
+    deployments: Mapped[list[LtiDeployment]] = relationship(order_by="LtiDeployment.id", lazy="selectin")
+
+
+class LtiDeployment(Base):
+    """One deployment id of a registration; a launch naming any other is refused."""
+
+    __tablename__ = "lti_deployments"
+    __table_args__ = (UniqueConstraint("registration_id", "deployment_id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    registration_id: Mapped[int] = mapped_column(ForeignKey("lti_registrations.id"), index=True)
+    deployment_id: Mapped[str] = mapped_column(String(255))
+
+
+class LtiKey(Base):
+    """The tool's own RSA key pair (it signs the tool's messages to platforms). The newest unretired key signs; a
+    retired key's public half stays in /lti/jwks until `retired_at` + settings' grace, so tokens signed just before a
+    rotation still verify."""
+
+    __tablename__ = "lti_keys"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    kid: Mapped[str] = mapped_column(String(64), unique=True)
+    private_key_pem: Mapped[str] = mapped_column(Text)
+    public_jwk: Mapped[dict[str, Any]]
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    retired_at: Mapped[datetime | None] = mapped_column(DateTime)
+
+
+class LtiIdentity(Base):
+    """Who a user is in an LMS: the launch's `sub` under one registration. A later launch finds the same user."""
+
+    __tablename__ = "lti_identities"
+    __table_args__ = (UniqueConstraint("registration_id", "sub"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    registration_id: Mapped[int] = mapped_column(ForeignKey("lti_registrations.id"), index=True)
+    sub: Mapped[str] = mapped_column(String(255))
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id"), index=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+    user: Mapped[User] = relationship(lazy="joined")
+
+
+class LtiLaunchState(Base):
+    """One OIDC login this tool started: the state and nonce it sent the platform. The launch that answers it uses
+    it once (`used_at`); a replayed or late launch finds it used or expired."""
+
+    __tablename__ = "lti_launch_states"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    registration_id: Mapped[int] = mapped_column(ForeignKey("lti_registrations.id"), index=True)
+    state: Mapped[str] = mapped_column(String(128), unique=True)
+    nonce: Mapped[str] = mapped_column(String(128), unique=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    expires_at: Mapped[datetime] = mapped_column(DateTime)
+    used_at: Mapped[datetime | None] = mapped_column(DateTime)
+    # A deep-linking launch: its deployment and the platform's deep-linking settings, until the instructor's choice
+    # of an assignment is answered (then None again: one answer per launch).
+    deployment_id: Mapped[str | None] = mapped_column(String(255))
+    deep_link: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+
+    registration: Mapped[LtiRegistration] = relationship(lazy="joined")
+
+
+class Draft(Base):
+    """A student's unsent prediction sheet for one assignment (assignment_id None: a free sheet), saved as they type so
+    it outlives the browser; one per user and assignment. `sheet` is what the form holds, valid or not yet."""
+
+    __tablename__ = "drafts"
+    # NULLs never clash in a unique constraint: a free sheet's one draft per user is the partial index's.
+    __table_args__ = (UniqueConstraint("user_id", "assignment_id"),
+                      Index("uq_drafts_free_sheet", "user_id", unique=True,
+                            postgresql_where=text("assignment_id IS NULL"), sqlite_where=text("assignment_id IS NULL")))
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id"), index=True)
+    assignment_id: Mapped[int | None] = mapped_column(ForeignKey("assignments.id"), index=True)
+    sheet: Mapped[dict[str, Any]]
+    updated_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+
+class LtiContext(Base):
+    """An LMS course (the launch's context) under a registration, with its grades service (AGS) and roster service
+    (NRPS) endpoints as the last launch from it gave them."""
+
+    __tablename__ = "lti_contexts"
+    __table_args__ = (UniqueConstraint("registration_id", "context_id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    registration_id: Mapped[int] = mapped_column(ForeignKey("lti_registrations.id"), index=True)
+    context_id: Mapped[str] = mapped_column(String(255))
+    lineitems_url: Mapped[str | None] = mapped_column(Text)
+    scopes: Mapped[list[Any]] = mapped_column(JSON, default=list)
+    memberships_url: Mapped[str | None] = mapped_column(Text)  # its roster service (NRPS)
+    updated_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+    registration: Mapped[LtiRegistration] = relationship(lazy="joined")
+
+
+class LtiLineItem(Base):
+    """The LMS gradebook column of one assignment in one LMS course: created once, reused after."""
+
+    __tablename__ = "lti_line_items"
+    __table_args__ = (UniqueConstraint("context_id", "assignment_id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    context_id: Mapped[int] = mapped_column(ForeignKey("lti_contexts.id"), index=True)
+    assignment_id: Mapped[int] = mapped_column(ForeignKey("assignments.id"), index=True)
+    url: Mapped[str] = mapped_column(Text)
+
+
+class LtiScore(Base):
+    """The last score sent (or tried) for one student on one line item: a send repeats only when the score changed
+    or the last try failed; `error` is what the instructor sees of a failure."""
+
+    __tablename__ = "lti_scores"
+    __table_args__ = (UniqueConstraint("line_item_id", "user_id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    line_item_id: Mapped[int] = mapped_column(ForeignKey("lti_line_items.id"), index=True)
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id"), index=True)
+    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"))
+    score_given: Mapped[float] = mapped_column(Float)
+    score_maximum: Mapped[float] = mapped_column(Float)
+    status: Mapped[str] = mapped_column(String(8))  # sent | failed
+    error: Mapped[str | None] = mapped_column(Text)
+    tries: Mapped[int] = mapped_column(Integer, default=0)
+    sent_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)

@@ -34,6 +34,8 @@ class ServiceStatus(BaseModel):
 def failure_reason(run: CaseRun) -> str:
     """A failed case run's reason, as a small fixed set an operator can alert on."""
     error = (run.error or "").lower()
+    if error.startswith("memory limit exceeded"):  # worker.errors.MEMORY_LIMIT_EXCEEDED: the service's bound
+        return "memory_limit"
     if run.result_status == "timeout" or "time limit" in error:
         return "timeout"
     if "provenance" in error:

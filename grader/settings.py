@@ -23,8 +23,13 @@ class Settings(BaseSettings):
     database_url: str = ""
     broker_url: str = ""
     artifacts_dir: Path | None = None
+    # A case run's captured stdout and stderr are each stored whole up to this many bytes, else their tail.
+    evidence_output_max_bytes: int = Field(1_000_000, ge=1_000)
     # Wall-clock limit of one case process; Celery's soft/hard limits sit a margin above it.
     case_time_limit_s: float = Field(900.0, gt=0)
+    # Resident memory one case process may hold (MB; 0: no limit): past it the process is stopped and the case fails
+    # "memory limit exceeded", a bound of the service. The largest case measured (docs/operator.md) plus a margin.
+    case_memory_limit_mb: int = Field(3072, ge=0)
     # A running case run whose worker stopped answering is re-queued this long after its time limit.
     lease_margin_s: float = Field(120.0, ge=0)
     # A queued case run whose message may have been lost (broker restart) is re-sent after this long.
@@ -72,6 +77,8 @@ class Settings(BaseSettings):
     # A new API token expires after this many days (`grader admin token --expires-in` chooses per token): about a
     # term, so a leaked token does not outlive the course.
     token_lifetime_days: int = Field(180, ge=1, le=3650)
+    # A student's sign-in link (roster import, re-issue) works once, within this many days of being issued.
+    sign_in_link_days: int = Field(14, ge=1, le=365)
     # Per staff member, audit re-runs asked for (each queues a fresh Genesis run that no reuse can shorten).
     rate_limit_audit_reruns: str = "20/hour"
     # Case runs one student may have waiting or running at once (a whole sheet queues at most 9).

@@ -119,13 +119,17 @@ def rubric_v3(**tolerance_values: float) -> dict:
 
 def mark_measured(run, result, *, artifact_dir=None) -> None:
     """Record a real CaseResult on a case run as the worker leaves a measured run: done, ok, its provenance, metrics
-    and arrays' folder (`artifact_dir`, default where the result was written)."""
+    and arrays' folder (`artifact_dir`, default where the result was written), and its evidence in the database."""
+    from sqlalchemy.orm import object_session
+
+    from grader.core.lifecycle import store_evidence
     from grader.models import utcnow
 
     run.status, run.result_status, run.artifact_dir = "done", "ok", str(artifact_dir or result.out_dir)
     run.provenance = result.provenance.model_dump(mode="json")
     run.metrics = result.metrics.model_dump(mode="json")
     run.actual_backend, run.wall_s, run.finished_at = result.provenance.actual_backend, result.wall_s, utcnow()
+    store_evidence(object_session(run), run, result)  # the evidence row the worker stores with the run
 
 
 def store_lesson_runs(session, measured: dict, *, by: str) -> dict[str, int]:

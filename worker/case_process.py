@@ -4,7 +4,8 @@ Never imports Genesis: the case runs in an isolated case process (`worker.isolat
 the lesson's contract) or in a warm case process (`worker.warm_process`, long-lived, a scene built per case or one
 built for an earlier case of the same structure reset and reused, recycled after a bounded number of cases or any
 error). Either way the parent accepts arrays only after checking shapes,
-finiteness and provenance against the spec.
+finiteness and provenance against the spec, and stops a case process whose resident memory passes the memory limit
+(`MemoryWatch`), which fails the case with its own reason.
 """
 
 from __future__ import annotations
@@ -12,9 +13,11 @@ from __future__ import annotations
 import json
 import os
 import select
+import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
@@ -26,9 +29,11 @@ from rubric import CaseResult, ContactCase, FrictionCase, Provenance, validate_a
 from rubric.metrics import case_metrics
 from rubric.results import discretization_problems
 
-from .errors import EXIT_PROVENANCE, EXIT_RENDER
+from .errors import EXIT_PROVENANCE, EXIT_RENDER, memory_limit_error
 
 DEFAULT_TIMEOUT_S = 900.0
+# settings.case_memory_limit_mb's default (the worker's slot passes the setting); a case process imports no settings.
+DEFAULT_MEMORY_LIMIT_MB = 3072
 WARM_MAX_CASES = 500
 EVIDENCE_FILES = ("arrays.npz", "arrays.tmp.npz", "provenance.json", "metrics.json", "stdout.txt", "stderr.txt")
 
@@ -38,6 +43,55 @@ def _case_process_env() -> dict[str, str]:
     # Headless rendering needs EGL; set before Genesis is imported in the case process so a warm one can render too.
     env.setdefault("PYOPENGL_PLATFORM", "egl")
     return env
+
+
+class MemoryWatch:
+    """Stops a case process whose resident memory (VmRSS, polled from /proc) passes `limit_mb`; `exceeded_mb` then
+    says what it held. Resident memory rather than an RLIMIT_AS: torch reserves far more address space than a case
+    uses (a CPU case: VmPeak several times its VmHWM; CUDA reserves tens of GB), so an address-space limit would refuse
+    reservations, not memory. A limit of 0, or a host without /proc, watches nothing."""
+
+    def __init__(self, pid: int, limit_mb: int, *, interval_s: float = 0.05):
+        self.pid, self.limit_mb, self.interval_s = pid, limit_mb, interval_s
+        self.exceeded_mb: int | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._watch, name=f"memory-watch-{pid}", daemon=True)
+
+    def __enter__(self) -> "MemoryWatch":
+        if self.limit_mb > 0 and _resident_mb(self.pid) is not None:
+            self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join()
+
+    def _watch(self) -> None:
+        while not self._stop.is_set():
+            resident = _resident_mb(self.pid)
+            if resident is None:  # ended
+                return
+            if resident > self.limit_mb:
+                self.exceeded_mb = resident
+                try:
+                    os.kill(self.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+                return
+            self._stop.wait(self.interval_s)
+
+
+def _resident_mb(pid: int) -> int | None:
+    """A live process's resident memory in MB; None once it has ended (or where /proc is not)."""
+    try:
+        with open(f"/proc/{pid}/status") as status:
+            for line in status:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1]) // 1024
+    except (FileNotFoundError, ProcessLookupError):
+        return None
+    return None  # a zombie has no VmRSS
 
 
 def _prepare(spec: ContactCase | FrictionCase, out_dir: Path) -> Path:
@@ -57,30 +111,35 @@ def run_case(
     mode: str = "isolated",
     timeout_s: float = DEFAULT_TIMEOUT_S,
     warm_process: "WarmCaseProcess | None" = None,
+    memory_limit_mb: int = DEFAULT_MEMORY_LIMIT_MB,
 ) -> CaseResult:
-    """Run one case and return its validated result; failures come back as results too, never as exceptions."""
+    """Run one case and return its validated result; failures come back as results too, never as exceptions.
+    `memory_limit_mb`: resident memory the case process may hold (0: no limit)."""
     out_dir = Path(out_dir)
     if mode == "warm":
         if warm_process is None:
             with WarmCaseProcess() as own:
-                return own.run(spec, out_dir, timeout_s=timeout_s)
-        return warm_process.run(spec, out_dir, timeout_s=timeout_s)
+                return own.run(spec, out_dir, timeout_s=timeout_s, memory_limit_mb=memory_limit_mb)
+        return warm_process.run(spec, out_dir, timeout_s=timeout_s, memory_limit_mb=memory_limit_mb)
     if mode != "isolated":
         raise ValueError(f"mode must be 'isolated' or 'warm', got {mode!r}")
     spec_path = _prepare(spec, out_dir)
     started = time.perf_counter()
     command = [sys.executable, "-m", "worker.isolated_process", str(spec_path), str(out_dir)]
-    try:
-        done = subprocess.run(command, capture_output=True, text=True, timeout=timeout_s, env=_case_process_env())
-        status, stdout, stderr = done.returncode, done.stdout, done.stderr
-    except subprocess.TimeoutExpired as exc:
-        status = None
-        stdout = (exc.stdout or b"").decode(errors="replace") if isinstance(exc.stdout, bytes) else exc.stdout or ""
-        stderr = (exc.stderr or b"").decode(errors="replace") if isinstance(exc.stderr, bytes) else exc.stderr or ""
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               errors="replace", env=_case_process_env())
+    with MemoryWatch(process.pid, memory_limit_mb) as watch:
+        try:
+            stdout, stderr = process.communicate(timeout=timeout_s)
+            status = process.returncode
+        except subprocess.TimeoutExpired:
+            process.kill()
+            stdout, stderr = process.communicate()
+            status = None
     (out_dir / "stdout.txt").write_text(stdout)
     (out_dir / "stderr.txt").write_text(stderr)
     return load_result(spec, out_dir, exit_status=status, mode=mode, wall_s=time.perf_counter() - started,
-                       timeout_s=timeout_s)
+                       timeout_s=timeout_s, memory=(memory_limit_mb, watch.exceeded_mb))
 
 
 def load_result(
@@ -91,11 +150,16 @@ def load_result(
     mode: str,
     wall_s: float = 0.0,
     timeout_s: float = DEFAULT_TIMEOUT_S,
+    memory: tuple[int, int | None] = (0, None),
 ) -> CaseResult:
-    """Read and check what a case process left in out_dir. exit_status None means it was killed on timeout."""
+    """Read and check what a case process left in out_dir. exit_status None means it was killed on timeout;
+    `memory` is (the limit, MB held when the process was stopped for passing it, else None)."""
     stdout = _read(out_dir / "stdout.txt")
     stderr = _read(out_dir / "stderr.txt")
     base = dict(spec=spec, stdout=stdout, stderr=stderr, out_dir=str(out_dir), wall_s=wall_s)
+    limit_mb, exceeded_mb = memory
+    if exceeded_mb is not None:
+        return CaseResult(status="failed", error=memory_limit_error(limit_mb, exceeded_mb), **base)
     if exit_status is None:
         return CaseResult(status="timeout", error=f"case process exceeded the {timeout_s:.0f} s time limit", **base)
     if exit_status != 0:
@@ -217,18 +281,25 @@ class WarmCaseProcess:
     def pid(self) -> int | None:
         return self._proc.pid if self._proc else None
 
-    def run(self, spec, out_dir: str | Path, *, timeout_s: float = DEFAULT_TIMEOUT_S) -> CaseResult:
+    def run(self, spec, out_dir: str | Path, *, timeout_s: float = DEFAULT_TIMEOUT_S,
+            memory_limit_mb: int = DEFAULT_MEMORY_LIMIT_MB) -> CaseResult:
+        """Run one case; the process (whatever earlier cases left in it) is held to the memory limit meanwhile."""
         out_dir = Path(out_dir)
         if self._proc is None or self._proc.poll() is not None or self.cases_run >= self.max_cases:
             self.close()
             self._start()
         spec_path = _prepare(spec, out_dir)
         started = time.perf_counter()
-        self._proc.stdin.write(json.dumps({"spec": str(spec_path), "out_dir": str(out_dir), "reuse": self.reuse_scenes}) + "\n")
-        self._proc.stdin.flush()
-        self.cases_run += 1
-        ready, _, _ = select.select([self._reply], [], [], timeout_s)
-        line = self._reply.readline() if ready else ""
+        with MemoryWatch(self._proc.pid, memory_limit_mb) as watch:
+            request = {"spec": str(spec_path), "out_dir": str(out_dir), "reuse": self.reuse_scenes}
+            try:
+                self._proc.stdin.write(json.dumps(request) + "\n")
+                self._proc.stdin.flush()
+            except BrokenPipeError:  # stopped already (by the watch, over its limit since its last case)
+                pass
+            self.cases_run += 1
+            ready, _, _ = select.select([self._reply], [], [], timeout_s)
+            line = self._reply.readline() if ready else ""
         if not line:
             # Timed out or died mid-case: the process is not trusted with another case.
             self._proc.kill()
@@ -239,7 +310,8 @@ class WarmCaseProcess:
             if exit_status != 0:
                 self.close()
         return load_result(spec, out_dir, exit_status=exit_status, mode="warm",
-                           wall_s=time.perf_counter() - started, timeout_s=timeout_s)
+                           wall_s=time.perf_counter() - started, timeout_s=timeout_s,
+                           memory=(memory_limit_mb, watch.exceeded_mb))
 
 
 def run_cases(

@@ -40,6 +40,7 @@ def process_case_run(*, session: Session, case_run_id: int, delivery: int, run_c
     if measurement is not None:
         return run.submission_id if lifecycle.store_reused(session=session, run=run, measurement=measurement) else None
     session.commit()
+    # The case process's folder: store_result copies its evidence into the database, after which it is a cache.
     out_dir = Path(settings.artifacts_dir) / "case-runs" / str(run.id) / f"try-{run.tries}"
     result = run_case(parse_case(run.spec), out_dir, **({"mode": run.mode} if run.mode else {}))
     stored = lifecycle.store_result(session=session, run=run, result=result, key_inputs=key_inputs)

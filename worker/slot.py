@@ -23,6 +23,7 @@ def run_case_in_slot(spec, out_dir: Path, mode: str | None = None):
     if mode == "warm" and _warm_process is None:
         _warm_process = _new_warm_process()
     return run_case(spec, out_dir, mode=mode, timeout_s=settings.case_time_limit_s,
+                    memory_limit_mb=settings.case_memory_limit_mb,
                     warm_process=_warm_process if mode == "warm" else None)
 
 

@@ -7,9 +7,9 @@ evaluated on the same kind of evidence, and each condition whose meaning shifts 
   the process that produced the numbers, and the evidence names the reuse;
 - rendering: the service runs the lesson cases with rendering off, so only the disabled branch (explicit empty
   frames and a rendering SKIP) is exercised; the camera branch is for `grader check --render`;
-- outputs: the configured output directory is the service's ARTIFACTS_DIR. Every accepted .npz and every figure
-  drawn for this grade must lie under it, and it must be outside version control (or ignored by it). Checked on the
-  filesystem here, never assumed.
+- outputs: the configured output directory is the service's ARTIFACTS_DIR. Every accepted .npz must have been written
+  under it (its bytes are then kept in the database) and every figure drawn for this grade must lie under it, and it
+  must be outside version control (or ignored by it). Checked here, never assumed.
 Nothing is passed by default: a missing run, an array or figure outside ARTIFACTS_DIR, or an artifacts folder that
 git would commit fails its condition like in the lab.
 """
@@ -65,11 +65,14 @@ def output_location(results: Iterable[CaseResult], figures: list[Path], *, artif
     """Every accepted result's arrays.npz and every figure under artifacts_dir, and artifacts_dir outside version
     control (or ignored by it)."""
     root = artifacts_dir.resolve()
-    arrays = [Path(r.out_dir) / "arrays.npz" for r in results if r.ok and r.out_dir]
+    accepted = [r for r in results if r.ok and r.out_dir]
+    # Where each .npz was written; its bytes are read from the database (stored_result), so a host that lost the
+    # folder since loses nothing: a missing array is one the result does not hold.
+    arrays = [Path(r.out_dir) / "arrays.npz" for r in accepted]
     outside = [str(p) for p in [*arrays, *figures] if not _under(p, root)]
-    missing = [str(p) for p in arrays if not p.is_file()]
-    lines = [f"{len(arrays)} .npz and {len(figures)} .png files under ARTIFACTS_DIR {root}"
-             if not outside else f"OUTSIDE ARTIFACTS_DIR {root}: {outside[:3]}"]
+    missing = [str(p) for r, p in zip(accepted, arrays) if not r.arrays]
+    lines = [f"{len(arrays)} .npz and {len(figures)} .png files under ARTIFACTS_DIR {root} (each .npz kept in the "
+             "database with its run)" if not outside else f"OUTSIDE ARTIFACTS_DIR {root}: {outside[:3]}"]
     if missing:
         lines.append(f"arrays missing: {missing[:3]}")
     passed = bool(arrays) and bool(figures) and not outside and not missing

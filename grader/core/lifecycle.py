@@ -1,12 +1,15 @@
 """Case-run and submission state in the database: claim, store a measured or reused result, finish, grade once.
 
 The neutral core shared by the API and the worker: plain functions on a session, no Celery, no case process, no
-engine. worker.case_run decides what to do with a claimed run and worker.grading grades; this module records it,
-and reads a stored result back (`stored_result`) for grading and the API's figures.
+engine. worker.case_run decides what to do with a claimed run and worker.grading grades; this module records it
+with its evidence (CaseEvidence: the case folder is only a cache), and reads a stored result back from the database
+(`stored_result`) for grading, the regrade, the audit and the figures.
 """
 
 from __future__ import annotations
 
+import io
+import json
 import os
 import socket
 from datetime import datetime, timedelta
@@ -16,17 +19,19 @@ from typing import Any
 import numpy as np
 from sqlalchemy import func, null, select, update
 from sqlalchemy.exc import IntegrityError
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, object_session
 
 from rubric import CaseResult, Provenance, parse_case
 from rubric.metrics import parse_metrics
 
-from grader.models import CaseRun, Event, Grade, Measurement, Submission, utcnow
+from grader.models import CaseEvidence, CaseRun, Event, Grade, Measurement, Submission, utcnow
 from grader.settings import settings
 from grader.core import content_key
 from grader.core.states import TERMINAL, CaseRunPurpose, CaseRunState, SubmissionState
 
 HOST = socket.gethostname()
+# The files of a case run's evidence (CaseEvidence), by the names a case process writes and a download serves.
+EVIDENCE_FILES = ("arrays.npz", "provenance.json", "metrics.json", "spec.json", "stdout.txt", "stderr.txt")
 # Where a message goes in its queue (kombu's Redis and filesystem transports serve the lowest number first): a run whose worker died mid-case first, then a queued run whose message was
 # lost (a broker restart), then new runs, and last the figures and lab check of a grade already stored (they go on
 # the cpu queue too, so a worker draws them only when no case waits: at a deadline every grade comes first).
@@ -213,6 +218,7 @@ def store_result(*, session: Session, run: CaseRun, result, key_inputs: dict[str
     run.metrics = result.metrics.model_dump(mode="json") if result.metrics is not None else None
     run.actual_backend = result.provenance.actual_backend if result.provenance else None
     run.stderr_tail = (result.stderr or "")[-4000:] or None
+    store_evidence(session, run, result)
     if result.ok:
         _record_measurement(session, run, provenance, key_inputs)
     return _finish(session, run, status=CaseRunState.DONE if result.ok else CaseRunState.FAILED,
@@ -260,14 +266,74 @@ def touch(submission: Submission, state: str, detail: str | None = None, *, sess
     session.add(Event(submission_id=submission.id, state=state, detail=detail))
 
 
+def store_evidence(session: Session, run: CaseRun, result) -> None:
+    """The run's evidence row, from what the case process wrote (the folder it wrote to is read once, here, on the
+    host that ran it). Replaces the row of an earlier try of a re-sent run, which no measurement used (only a failed
+    or stuck run is re-sent). Committed by `_finish` with the run's state."""
+    folder = Path(result.out_dir) / "arrays.npz" if result.out_dir else None
+    if folder is not None and folder.is_file():
+        arrays = folder.read_bytes()
+    elif result.arrays:  # a result recorded without its folder: the same arrays, written as the engine writes them
+        buffer = io.BytesIO()
+        np.savez(buffer, **result.arrays)
+        arrays = buffer.getvalue()
+    else:
+        arrays = None
+    evidence = session.get(CaseEvidence, run.id) or CaseEvidence(case_run_id=run.id)
+    evidence.arrays = arrays
+    evidence.spec = result.spec.model_dump(mode="json", exclude_computed_fields=True)
+    evidence.provenance = result.provenance.model_dump(mode="json") if result.provenance else None
+    evidence.metrics = result.metrics.model_dump(mode="json") if result.metrics is not None else None
+    limit = settings.evidence_output_max_bytes
+    evidence.stdout, evidence.stderr = _bounded(result.stdout or "", limit), _bounded(result.stderr or "", limit)
+    evidence.sizes = {name: len(body) for name in EVIDENCE_FILES
+                      if (body := evidence_bytes(evidence, name)) is not None}
+    evidence.stored_at = utcnow()
+    session.add(evidence)
+
+
+def _bounded(text: str, limit: int) -> str:
+    """`text` whole when it fits `limit` bytes (UTF-8), else its last `limit` bytes after a line saying what was cut."""
+    data = text.encode()
+    if len(data) <= limit:
+        return text
+    return (f"[the first {len(data) - limit} of {len(data)} bytes were cut; the last {limit} are kept]\n"
+            + data[-limit:].decode(errors="replace"))
+
+
+def evidence_bytes(evidence: CaseEvidence, filename: str) -> bytes | None:
+    """One evidence file's bytes as served (None when the run has none): the .npz as written, JSON indented."""
+    if filename == "arrays.npz":
+        return evidence.arrays
+    if filename in ("stdout.txt", "stderr.txt"):
+        text = getattr(evidence, filename.removesuffix(".txt"))
+        return text.encode() if text is not None else None
+    value = {"spec.json": evidence.spec, "provenance.json": evidence.provenance,
+             "metrics.json": evidence.metrics}[filename]
+    return json.dumps(value, indent=2).encode() if value is not None else None
+
+
+def evidence_of(run: CaseRun) -> CaseEvidence | None:
+    """The evidence a finished run stands on: its own, or that of the run whose measurement it reused. None while
+    the run is not finished (a re-sent run's earlier try is not its evidence) or when none was stored."""
+    if run.status not in TERMINAL:
+        return None
+    session = object_session(run)
+    return session.get(CaseEvidence, run.reused_from_id or run.id) if session is not None else None
+
+
 def stored_result(run: CaseRun):
-    """The CaseResult a case run stands for, read back from its stored provenance and .npz arrays."""
+    """The CaseResult a case run stands for, read back from the database: its provenance, metrics and the .npz
+    bytes of its evidence (`evidence_of`); no file is read. Raises LookupError for an ok run without evidence."""
     spec = parse_case(run.spec)
     provenance = Provenance.model_validate(run.provenance) if run.provenance else None
     if run.status != CaseRunState.DONE or run.result_status != "ok":
         return CaseResult(spec=spec, status=run.result_status or "failed", provenance=provenance,
                           error=run.error or f"case run ended {run.status}", out_dir=run.artifact_dir)
-    with np.load(Path(run.artifact_dir) / "arrays.npz", allow_pickle=False) as npz:
+    evidence = evidence_of(run)
+    if evidence is None or evidence.arrays is None:
+        raise LookupError(f"case run {run.id} ({run.name}) has no stored arrays")
+    with np.load(io.BytesIO(evidence.arrays), allow_pickle=False) as npz:
         arrays = {name: npz[name] for name in npz.files}
     metrics = parse_metrics(run.metrics) if run.metrics else None
     return CaseResult(spec=spec, status="ok", arrays=arrays, provenance=provenance, metrics=metrics,

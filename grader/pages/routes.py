@@ -164,10 +164,11 @@ def evidence_file(request: Request, submission_id: int, name: str, filename: str
     if submission is None:
         return _not_found(request, user, f"file {filename} of case run {name}")
     try:
-        path, media_type = exports.evidence_file(submission=submission, name=name, filename=filename)
+        body, media_type = exports.evidence_file(submission=submission, name=name, filename=filename)
     except NotFound:
         return _not_found(request, user, f"file {filename} of case run {name}")
-    return FileResponse(path, media_type=media_type, filename=f"{submission.id}-{name}-{filename}")
+    return Response(body, media_type=media_type, headers={
+        "Content-Disposition": f'attachment; filename="{submission.id}-{name}-{filename}"'})
 
 
 @router.get("/courses/{course}/grades.csv")

@@ -8,14 +8,13 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from datetime import datetime
-from pathlib import Path
 
 from sqlalchemy.orm import object_session
 
 from grader.core.rubrics import stored_version
 from grader.core.states import CaseRunState, SubmissionState
 from grader.models import CaseRun, Grade, Submission, utcnow
-from grader.services.exports import EVIDENCE
+from grader.services.exports import evidence_names
 from grader.services.visibility import GradeView
 from grader.settings import settings
 from rubric.metrics import TUMBLE_EXPLANATION, tumble_angle_deg
@@ -152,9 +151,7 @@ def _elapsed(run: CaseRun, now: datetime) -> float | None:
 
 
 def _files(run: CaseRun) -> list[str]:
-    if not run.artifact_dir or not Path(run.artifact_dir).is_dir():
-        return []
-    return [name for name in EVIDENCE if (Path(run.artifact_dir) / name).is_file()]
+    return evidence_names(run)  # from the database: the worker's folder may be on another host, or gone
 
 
 def _prediction(text: str) -> str:

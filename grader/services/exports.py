@@ -1,13 +1,13 @@
 """Grade exports for instructors: a course's grades as CSV, an assignment's counted grades as CSV, one submission as
-Gradescope results.json, and the evidence files a case run wrote. The API and the pages serve the same bytes."""
+Gradescope results.json, and the evidence files of a case run (from the database). The API and the pages serve the
+same bytes."""
 
 from __future__ import annotations
-
-from pathlib import Path
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from grader.core.lifecycle import evidence_bytes, evidence_of
 from grader.core.rubrics import current_grade
 from grader.models import Assignment, CaseRun, Course, Grade, Submission
 from grader.services import assignments
@@ -16,7 +16,7 @@ from grader.services.visibility import visibility_of
 from rubric.exports import csv_text, grades_csv, gradescope_results
 from rubric.scoring import GradeReport
 
-# What a case run writes and may be downloaded, with its media type. Nothing else is ever served from its folder.
+# A case run's evidence files (grader.core.lifecycle.EVIDENCE_FILES) with their media types; nothing else is served.
 EVIDENCE = {"arrays.npz": "application/octet-stream", "provenance.json": "application/json",
             "metrics.json": "application/json",
             "spec.json": "application/json", "stdout.txt": "text/plain", "stderr.txt": "text/plain"}
@@ -66,12 +66,20 @@ def gradescope(*, session: Session, submission: Submission) -> dict:
     return gradescope_results(report, grade.execution_s, shown)
 
 
-def evidence_file(*, submission: Submission, name: str, filename: str) -> tuple[Path, str]:
-    """(path, media type) of one evidence file of the submission's case run `name`; NotFound otherwise."""
+def evidence_names(run: CaseRun) -> list[str]:
+    """The evidence files a case run has in the database (its own, or its reused measurement's), in EVIDENCE order."""
+    evidence = evidence_of(run)
+    return [name for name in EVIDENCE if name in evidence.sizes] if evidence is not None else []
+
+
+def evidence_file(*, submission: Submission, name: str, filename: str) -> tuple[bytes, str]:
+    """(bytes, media type) of one evidence file of the submission's case run `name`, read from the database (the
+    worker's folder may be gone); NotFound otherwise."""
     run: CaseRun | None = next((r for r in submission.case_runs if r.name == name), None)
-    if run is None or filename not in EVIDENCE or not run.artifact_dir:
+    if run is None or filename not in EVIDENCE:
         raise NotFound(f"no file {filename!r} for case run {name!r}")
-    path = Path(run.artifact_dir) / filename
-    if not path.is_file():
-        raise NotFound(f"{filename} was not written by case run {name!r}")
-    return path, EVIDENCE[filename]
+    evidence = evidence_of(run)
+    body = evidence_bytes(evidence, filename) if evidence is not None else None
+    if body is None:
+        raise NotFound(f"{filename} was not stored for case run {name!r}")
+    return body, EVIDENCE[filename]

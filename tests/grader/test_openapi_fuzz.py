@@ -80,7 +80,7 @@ def world(seeded, tmp_path):
     """`seeded` plus: alice's submission graded (a stored grade, one lab figure, one case run's evidence files), an
     assignment of the course with an extension of hers, and an audit entry; the ids every valid request names."""
     from grader.core.db import new_session
-    from grader.models import CaseRun, Grade, Submission
+    from grader.models import CaseEvidence, CaseRun, Grade, Submission
     from grader.settings import settings as grader_settings
     from rubric.scoring import GradeReport
 
@@ -89,16 +89,15 @@ def world(seeded, tmp_path):
     sid = mine["id"]
     report = GradeReport(lesson="L03", student="alice", rubric_version="2", rubric_hash="x", engine_version="1.3.3",
                          total=0, max_total=0, complete=True, items=[], config_findings=[])
-    evidence = tmp_path / "evidence"
-    evidence.mkdir()
-    (evidence / "stdout.txt").write_text("N1 ran\n")
-    (evidence / "provenance.json").write_text('{"requested_backend": "cpu"}')  # a JSON file is documented as JSON
     figures = grader_settings.figures_dir(sid)
     figures.mkdir(parents=True)
     (figures / "lab.png").write_bytes(PNG)
     with new_session() as session:
         run = session.query(CaseRun).filter_by(submission_id=sid, name="N1").one()
-        run.status, run.result_status, run.actual_backend, run.artifact_dir = "done", "ok", "cpu", str(evidence)
+        run.status, run.result_status, run.actual_backend = "done", "ok", "cpu"
+        # its evidence row: a JSON file is documented as JSON
+        session.add(CaseEvidence(case_run_id=run.id, spec=run.spec, provenance={"requested_backend": "cpu"},
+                                 stdout="N1 ran\n", stderr="", sizes={"stdout.txt": 7, "provenance.json": 32}))
         session.add(Grade(submission_id=sid, rubric_lesson="L03", rubric_version="2", rubric_hash="x", total=0,
                           max_total=0, report=report.model_dump(mode="json")))
         session.get(Submission, sid).status = "graded"
@@ -138,6 +137,7 @@ VALID_GETS = [
     ("/v1/courses/{course}/grades.csv", "prof", {"course": "l03"}, {"latest": True}),
     ("/v1/courses/{course}/regrade-preview", "prof", {"course": "l03"}, {"version": "2", "lesson": "L03"}),
     ("/v1/courses/{course}/regrades", "prof", {"course": "l03"}, {}),
+    ("/v1/courses/{course}/lti/registrations", "prof", {"course": "l03"}, {}),
     ("/v1/assignments/{assignment_id}", "alice", {}, {}),
     ("/v1/assignments/{assignment_id}/grades", "prof", {}, {}),
     ("/v1/assignments/{assignment_id}/grades.csv", "prof", {}, {}),

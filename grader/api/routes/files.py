@@ -1,11 +1,12 @@
-"""Downloads: a case run's evidence files (arrays .npz, provenance, captured output) and the lab figures."""
+"""Downloads: a case run's evidence files (arrays .npz, provenance, captured output; from the database) and the lab
+figures."""
 
 from __future__ import annotations
 
 from typing import Annotated, Literal
 
 from fastapi import APIRouter, HTTPException, Path, status
-from fastapi.responses import FileResponse
+from fastapi.responses import FileResponse, Response
 
 from grader.api.deps import Name, SubmissionDep
 from grader.api.responses import errors, file_ok
@@ -21,12 +22,13 @@ FigureName = Annotated[str, Path(pattern=r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,250}\.p
                                  description="A figure's file name as listed by ../figures")]
 
 
-@router.get("/case-runs/{name}/files/{filename}", response_class=FileResponse,
+@router.get("/case-runs/{name}/files/{filename}", response_class=Response,
             responses=file_ok("The file", *sorted(set(EVIDENCE.values()))))
 def case_run_file(submission: SubmissionDep, name: Name, filename: EvidenceName):
     """One evidence file of a case run (arrays.npz, provenance.json, metrics.json, spec.json, stdout, stderr)."""
-    path, media_type = exports.evidence_file(submission=submission, name=name, filename=filename)
-    return FileResponse(path, media_type=media_type, filename=f"{submission.id}-{name}-{filename}")
+    body, media_type = exports.evidence_file(submission=submission, name=name, filename=filename)
+    return Response(body, media_type=media_type, headers={
+        "Content-Disposition": f'attachment; filename="{submission.id}-{name}-{filename}"'})
 
 
 @router.get("/figures", response_model=list[str], responses=errors(409, _409="Not graded yet"))
