@@ -95,8 +95,11 @@ class Client:
     def update_course(self, course: str, body: dict) -> dict:
         return self._ok(self.http.patch(f"/courses/{course}", json=body))
 
-    def import_roster(self, course: str, csv_text: str) -> list:
-        return self._ok(self.http.post(f"/courses/{course}/roster", json={"csv": csv_text}))
+    def import_roster(self, course: str, csv_text: str, links: bool = False) -> list:
+        return self._ok(self.http.post(f"/courses/{course}/roster", json={"csv": csv_text, "links": links}))
+
+    def sign_in_link(self, course: str, student: str) -> dict:
+        return self._ok(self.http.post(f"/courses/{course}/students/{student}/sign-in-link"))
 
     def wait(self, submission_id: int, *, poll_s: float = 1.0, on_progress: Callable[[dict], None] | None = None,
              timeout_s: float | None = None, complete: bool = True) -> dict:

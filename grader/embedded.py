@@ -22,22 +22,25 @@ from grader.core.db import migrate, new_session
 from grader.core.states import CaseRunState, SubmissionState
 from grader.dispatch import EMBEDDED_QUEUES, resend
 from grader.reconcile import RECONCILE_EVERY_S, find_and_requeue
-from grader.services import accounts
+from grader.services import accounts, sign_in_links
 from grader.settings import settings
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE_SHEET = ROOT / "examples" / "l03" / "reference.yaml"
 
 
-def bootstrap() -> dict[str, str]:
-    """Migrate the embedded database and issue fresh tokens for a demo course (printed, never stored in clear)."""
+def bootstrap() -> tuple[dict[str, str], str]:
+    """Migrate the embedded database and issue fresh tokens for a demo course, and a sign-in link secret for its
+    student (printed, never stored in clear; the student's earlier link stops working)."""
     migrate()
     with new_session() as session:
         course = accounts.get_or_create_course(session=session, name="demo")
-        tokens = {role: accounts.create_token(session=session, user=accounts.get_or_create_user(
-            session=session, course=course, name=role, role=role)) for role in ("student", "instructor")}
+        users = {role: accounts.get_or_create_user(session=session, course=course, name=role, role=role)
+                 for role in ("student", "instructor")}
+        tokens = {role: accounts.create_token(session=session, user=user) for role, user in users.items()}
+        link, _ = sign_in_links.issue(session=session, user=users["student"])
         session.commit()
-    return tokens
+    return tokens, link
 
 
 def start_worker(log_path: Path) -> subprocess.Popen:
@@ -87,8 +90,9 @@ def follow(client, submission_id: int, total: int) -> dict:
         return client.wait(submission_id, poll_s=0.5, on_progress=update)
 
 
-def summary(client, submission_id: int, state: dict, url: str) -> Path:
-    """Print the grade summary; write grade.json and case-runs.json under DATA_DIR/reports; return that folder."""
+def summary(client, submission_id: int, state: dict, url: str, sign_in_link: str | None = None) -> Path:
+    """Print the grade summary; write grade.json and case-runs.json under DATA_DIR/reports; return that folder.
+    `sign_in_link`: the student's, printed beside the report page's URL."""
     folder = settings.data_dir.absolute() / "reports" / f"submission-{submission_id}"
     folder.mkdir(parents=True, exist_ok=True)
     runs = client.case_runs(submission_id)
@@ -113,7 +117,11 @@ def summary(client, submission_id: int, state: dict, url: str) -> Path:
     click.echo(f"GRADE {grade['total']:g} / {grade['max_total']:g} (rubric {grade['rubric_lesson']} "
                f"v{grade['rubric_version']})" + (f"; {grade['pending']}" if grade.get("pending") else ""))
     click.echo(f"report: {folder}/grade.json and {url}/v1/submissions/{submission_id}/grade")
-    click.echo(f"report page: {url}/submissions/{submission_id} (sign in with the student token printed above)")
+    if sign_in_link:
+        click.echo(f"report page: {url}/submissions/{submission_id}\n"
+                   f"  sign in first with the student's link (works once): {sign_in_link}")
+    else:
+        click.echo(f"report page: {url}/submissions/{submission_id} (sign in with the student token printed above)")
     click.echo(f"class dashboard: {url}/courses/demo/dashboard (sign in with the instructor token)")
     return folder
 
@@ -121,7 +129,7 @@ def summary(client, submission_id: int, state: dict, url: str) -> Path:
 def run(*, host: str, port: int, sheet: Path, exit_after_grading: bool) -> int:
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     click.echo(f"embedded service: database {settings.database_url}, broker {settings.broker_url}")
-    tokens = bootstrap()
+    tokens, link = bootstrap()
     worker = start_worker(settings.data_dir / "worker.log")
     server = start_api(host, port)
     url = f"http://{host}:{port}"
@@ -134,7 +142,7 @@ def run(*, host: str, port: int, sheet: Path, exit_after_grading: bool) -> int:
         created = client.submit(load_sheet(sheet))
         click.echo(f"submitted {sheet} as submission {created['id']} ({created['progress']['total']} case runs)")
         state = follow(client, created["id"], created["progress"]["total"])
-        summary(client, created["id"], state, url)
+        summary(client, created["id"], state, url, sign_in_link=f"{url}{sign_in_links.PATH}{link}")
         if not exit_after_grading:
             click.echo(f"serving at {url} until Ctrl-C")
             signal.signal(signal.SIGTERM, signal.default_int_handler)  # SIGTERM stops cleanly, like Ctrl-C

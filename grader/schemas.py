@@ -306,6 +306,8 @@ class RosterImport(Strict):
     """A roster as CSV text with the header `student_id,name,email`, one student a row."""
 
     csv: str = Field(min_length=1, max_length=200_000)
+    links: bool = Field(False, description="Also issue every student of the file a new sign-in link (single use, "
+                                           "expiring; an earlier link of theirs stops working)")
 
 
 class RosterEntry(BaseModel):
@@ -314,6 +316,15 @@ class RosterEntry(BaseModel):
     email: str
     created: bool = Field(description="False when the student was already on the roster (name and email updated)")
     token: str | None = Field(description="The new student's API token, shown this once; None on a re-import")
+    sign_in_link: str | None = Field(None, description="With `links`: the student's new sign-in link, shown this once")
+    sign_in_link_expires_at: datetime | None = None
+
+
+class SignInLinkPublic(BaseModel):
+    student: str
+    sign_in_link: str = Field(description="The student's new sign-in link, shown this once: it works once, until "
+                                          "expires_at; the earlier link no longer works")
+    expires_at: datetime
 
 
 class CoursePublic(BaseModel):

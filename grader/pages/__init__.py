@@ -1,10 +1,10 @@
 """Server-rendered pages (Jinja2 templates in grader/templates, assets in grader/static): sign-in, reports, the
-class dashboard, rubrics and regrades, the audit log, and an assignment's page. Every unsafe request to any of them
-is checked by origin first (grader.pages.csrf)."""
+class dashboard, rubrics and regrades, the audit log, an assignment's page, and a student's sign-in link and course
+page. Every unsafe request to any of them is checked by origin first (grader.pages.csrf)."""
 
 from fastapi import APIRouter, Depends
 
-from grader.pages import assignment, audit, dashboard, regrade, routes
+from grader.pages import assignment, audit, dashboard, regrade, routes, sheet_form, sign_in_links, student
 from grader.pages.csrf import same_origin
 
 router = APIRouter(dependencies=[Depends(same_origin)])
@@ -13,5 +13,8 @@ router.include_router(regrade.router)
 router.include_router(audit.router)
 router.include_router(dashboard.router)
 router.include_router(assignment.router)
+router.include_router(sheet_form.router)
+router.include_router(sign_in_links.router)
+router.include_router(student.router)
 
 __all__ = ["router"]

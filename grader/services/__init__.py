@@ -10,4 +10,6 @@ audit         the discrepancy log, audit re-runs  roster       roster import
 courses       course settings                     sheets       the sheet models for the API
 errors        the domain error tree               sending      what services need of the task queue
 sessions      page sessions (sign-in, sign-out)   quotas       per-person limits on costly requests
+sign_in_links students' single-use sign-in links   course_page  a student's course page, as data
+lti           LTI 1.3: registrations, keys, launches, deep links, scores sent to the LMS
 """

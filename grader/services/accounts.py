@@ -11,7 +11,7 @@ from sqlalchemy.orm import Session
 from grader.core.security import hash_token, new_token
 from grader.core.states import Role, values
 from grader.models import ApiToken, Course, User, utcnow
-from grader.services import sessions
+from grader.services import sessions, sign_in_links
 from grader.services.access import MAX_ID
 from grader.services.errors import Invalid, NotFound
 from grader.settings import settings
@@ -93,8 +93,8 @@ def revoke_token(*, session: Session, token_or_id: str) -> ApiToken:
 
 
 def revoke_student_tokens(*, session: Session, course: Course, name: str) -> tuple[int, int]:
-    """Revokes every working token of a student of the course and ends their page sessions: (tokens, sessions).
-    NotFound for a name that is not a student of this course."""
+    """Revokes every working token and unused sign-in link of a student of the course and ends their page sessions:
+    (tokens, sessions). NotFound for a name that is not a student of this course."""
     student = session.scalar(select(User).where(User.course_id == course.id, User.name == name,
                                                 User.role == Role.STUDENT))
     if student is None:
@@ -102,6 +102,7 @@ def revoke_student_tokens(*, session: Session, course: Course, name: str) -> tup
     now = utcnow()
     tokens = session.execute(update(ApiToken).where(ApiToken.user_id == student.id, ApiToken.revoked_at.is_(None))
                              .values(revoked_at=now)).rowcount
+    sign_in_links.revoke_links(session=session, user_id=student.id)  # else a mailed link would let them back in
     return tokens, sessions.revoke_sessions(session=session, user_id=student.id)
 
 

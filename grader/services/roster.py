@@ -1,4 +1,5 @@
-"""Roster import: a course's students from CSV (student id, name, email), each new one given a token once."""
+"""Roster import: a course's students from CSV (student id, name, email), each new one given a token once, and on
+request each student in the file a fresh sign-in link (grader.services.sign_in_links)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from sqlalchemy.orm import Session
 
 from grader.core.states import Role
 from grader.models import Course, User
-from grader.services import accounts
+from grader.services import accounts, sign_in_links
 from grader.services.errors import Invalid
 
 COLUMNS = ["student_id", "name", "email"]
@@ -49,9 +50,11 @@ def parse_roster(text: str) -> tuple[list[tuple[str, str, str]], list[dict[str, 
     return rows, errors
 
 
-def import_roster(*, session: Session, course: Course, rows: list[tuple[str, str, str]]) -> list[dict]:
+def import_roster(*, session: Session, course: Course, rows: list[tuple[str, str, str]],
+                  links: bool = False) -> list[dict]:
     """Add the students not yet in the course (each with a new token) and update the others' name and email; a
-    re-import therefore never duplicates anyone or issues a second token. The caller commits."""
+    re-import therefore never duplicates anyone or issues a second token. With `links`, every student of the file
+    gets a new sign-in link secret (their earlier link stops working). The caller commits."""
     out = []
     for sid, name, email in rows:
         user = session.scalar(select(User).where(User.course_id == course.id, User.name == sid))
@@ -60,7 +63,9 @@ def import_roster(*, session: Session, course: Course, rows: list[tuple[str, str
             user = accounts.get_or_create_user(session=session, course=course, name=sid, role="student")
         user.full_name, user.email = name, email
         token = accounts.create_token(session=session, user=user) if created else None
-        out.append({"student": sid, "name": name, "email": email, "created": created, "token": token})
+        link = sign_in_links.issue(session=session, user=user) if links else None
+        out.append({"student": sid, "name": name, "email": email, "created": created, "token": token,
+                    "link_secret": link[0] if link else None, "link_expires_at": link[1].expires_at if link else None})
     return out
 
 
@@ -71,13 +76,14 @@ def role_conflicts(*, session: Session, course: Course, rows: list[tuple[str, st
             for sid, _, _ in rows if sid in staff]
 
 
-def import_csv(*, session: Session, course: Course, text: str) -> list[dict]:
+def import_csv(*, session: Session, course: Course, text: str, links: bool = False) -> list[dict]:
     """Import a roster CSV (student_id,name,email) into the course, all rows or none (Invalid naming each bad row's
-    field and rule); new students get a token, shown only in the answer. Commits."""
+    field and rule); new students get a token (and with `links` every row a sign-in link), shown only in the
+    answer. Commits."""
     rows, problems = parse_roster(text)
     problems = problems or role_conflicts(session=session, course=course, rows=rows)
     if problems:
         raise Invalid("invalid roster", problems)
-    entries = import_roster(session=session, course=course, rows=rows)
+    entries = import_roster(session=session, course=course, rows=rows, links=links)
     session.commit()
     return entries

@@ -1,13 +1,15 @@
-"""A course: its settings (time zone), and its submissions, class dashboard and roster for its staff."""
+"""A course: its settings (time zone), and its submissions, class dashboard and roster (with students' sign-in
+links) for its staff."""
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Request
 
-from grader.api.deps import InstructorCourse, MemberCourse, SessionDep, StaffCourse, CurrentUser
+from grader.api.deps import InstructorCourse, MemberCourse, Name, SessionDep, StaffCourse, CurrentUser
 from grader.api.responses import errors
 from grader.api.views import submission_public
 from grader.models import Course
-from grader.schemas import CoursePublic, CourseUpdate, RosterEntry, RosterImport, SubmissionPublic
-from grader.services import courses, roster, submissions
+from grader.schemas import (CoursePublic, CourseUpdate, RosterEntry, RosterImport, SignInLinkPublic,
+                            SubmissionPublic)
+from grader.services import courses, roster, sign_in_links, submissions
 from grader.services.dashboard import Dashboard, course_dashboard
 
 router = APIRouter(prefix="/courses", tags=["courses"], responses=errors(401, 403, 404, 422))
@@ -48,8 +50,25 @@ def dashboard(course: StaffCourse, session: SessionDep):
     return course_dashboard(session=session, course=course)
 
 
+def _link(request: Request, secret: str) -> str:
+    """The page a student opens: this site's address, as the caller reached it."""
+    return str(request.base_url).rstrip("/") + sign_in_links.PATH + secret
+
+
 @router.post("/{course}/roster", response_model=list[RosterEntry], responses=errors(413))
-def import_roster(course: InstructorCourse, body: RosterImport, session: SessionDep):
+def import_roster(course: InstructorCourse, body: RosterImport, session: SessionDep, request: Request):
     """Import students from CSV (student_id,name,email): new ones get a token, shown only in this answer; a student
-    already there keeps their token and gets the file's name and email. All rows or none (instructors)."""
-    return roster.import_csv(session=session, course=course, text=body.csv)
+    already there keeps their token and gets the file's name and email. With `links`, every student of the file gets
+    a new single-use sign-in link (their earlier one stops working). All rows or none (instructors)."""
+    entries = roster.import_csv(session=session, course=course, text=body.csv, links=body.links)
+    return [RosterEntry(**{k: v for k, v in e.items() if k not in ("link_secret", "link_expires_at")},
+                        sign_in_link=_link(request, e["link_secret"]) if e["link_secret"] else None,
+                        sign_in_link_expires_at=e["link_expires_at"]) for e in entries]
+
+
+@router.post("/{course}/students/{student}/sign-in-link", response_model=SignInLinkPublic)
+def reissue_sign_in_link(course: InstructorCourse, student: Name, session: SessionDep, request: Request):
+    """Issue one student of the course a new sign-in link, shown only in this answer; their earlier link stops
+    working (instructors). 422 naming `student` for anyone not a student of the course."""
+    secret, row = sign_in_links.issue_for(session=session, course=course, student_name=student)
+    return SignInLinkPublic(student=row.user.name, sign_in_link=_link(request, secret), expires_at=row.expires_at)
