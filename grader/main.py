@@ -15,6 +15,7 @@ from grader.api.headers import SecurityHeaders, docs_policy
 from grader.api.main import api_router
 from grader.api.routes.health import metrics_router
 from grader.pages import errors as page_errors
+from grader.pages import lti as lti_pages
 from grader.pages import router as pages_router
 from grader.pages.templates import TEMPLATES
 from grader.services.errors import DomainError
@@ -61,4 +62,5 @@ app.add_middleware(SecurityHeaders)
 app.include_router(api_router)
 app.include_router(metrics_router)
 app.include_router(pages_router)
+app.include_router(lti_pages.router)  # outside the pages' origin check: a launch is a cross-site POST by design
 app.mount("/static", StaticFiles(directory=Path(__file__).resolve().parent / "static"), name="static")

@@ -3,8 +3,8 @@
 from fastapi import APIRouter, Depends, Request
 from fastapi.exceptions import RequestValidationError
 
-from grader.api.routes import (assignments, audit, case_runs, courses, exports, files, health, rubrics, submissions,
-                               tokens)
+from grader.api.routes import (assignments, audit, case_runs, courses, exports, files, health, lti, rubrics,
+                               submissions, tokens)
 
 
 def single_query_values(request: Request) -> None:
@@ -29,3 +29,4 @@ api_router.include_router(rubrics.router)
 api_router.include_router(audit.router)
 api_router.include_router(case_runs.router)
 api_router.include_router(tokens.router)
+api_router.include_router(lti.router)
