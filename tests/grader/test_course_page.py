@@ -58,6 +58,8 @@ def test_the_course_page_shows_each_assignment_as_it_applies_to_the_student_now(
         assert _shown(open_now[key]) in on_time and "CST" in _shown(open_now[key])
     assert "1 used, 2 left of 3" in on_time and "2 submissions per hour (1 in the last hour)" in on_time
     assert "Accepted as attempt 2, on time, no late penalty" in _text(on_time)
+    assert f'href="/assignments/{open_now["id"]}/sheet"' in on_time  # where the student answers it
+    assert f'href="/assignments/{closed["id"]}/sheet"' not in _section(page.text, closed["id"])  # nothing to answer
     assert "Score that counts 8 / 8 from attempt 1" in _text(on_time)
     assert f'<a href="/submissions/{first["id"]}">attempt 1</a>' in on_time and "counts</span>" in on_time
 
