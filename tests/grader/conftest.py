@@ -19,6 +19,11 @@ class Api:
     def as_(self, who: str) -> dict[str, str]:
         return {"Authorization": f"Bearer {self.tokens[who]}"}
 
+    def send_case_run(self, *args, priority=None) -> None:
+        """Stands for grader.dispatch.send_case_run: records what would be sent, and at which priority."""
+        self.sent.append(args)
+        self.priorities.append(priority)
+
 
 @pytest.fixture
 def api(tmp_path, monkeypatch):
@@ -41,11 +46,7 @@ def api(tmp_path, monkeypatch):
         session.commit()
     quotas._limiter.cache_clear()  # a fresh count per test: user ids repeat across the tests' databases
     state = Api(client=TestClient(app), tokens=tokens)
-    def send_case_run(*args, priority=None):
-        state.sent.append(args)
-        state.priorities.append(priority)
-
-    monkeypatch.setattr(dispatch, "send_case_run", send_case_run)
+    monkeypatch.setattr(dispatch, "send_case_run", state.send_case_run)
     yield state
     db.get_engine().dispose()
     db._engine = None

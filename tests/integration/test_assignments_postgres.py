@@ -60,7 +60,7 @@ def api(database_url, tmp_path, monkeypatch):
         tokens = create_people(session, course="l03", other_course="other")
         session.commit()
     state = Api(client=TestClient(app), tokens=tokens)
-    monkeypatch.setattr(dispatch, "send_case_run", lambda *args: state.sent.append(args))
+    monkeypatch.setattr(dispatch, "send_case_run", state.send_case_run)
     yield state
     db.get_engine().dispose()
     db._engine = None
