@@ -32,6 +32,13 @@ def wait_until(predicate, what: str, limit_s: float = WAIT_LIMIT_S):
     return value
 
 
+def images_decoded(page, selector: str) -> None:
+    """Wait until every image `selector` matches is decoded, none broken. Polled from here, not with
+    page.wait_for_function: that evaluates a string in the page, which the pages' CSP (no 'unsafe-eval') refuses."""
+    wait_until(lambda: all(page.locator(selector).evaluate_all("els => els.map(i => i.complete && i.naturalWidth > 0)")),
+               f"every {selector} decoded")
+
+
 def grades_of(stack, submission_id: int) -> int:
     with Session(stack.engine) as session:
         return session.scalar(select(func.count()).select_from(Grade).where(Grade.submission_id == submission_id))

@@ -15,7 +15,7 @@ from sqlalchemy.exc import DatabaseError
 from sqlalchemy.orm import Session
 
 from grader.models import AuditEntry
-from tests.integration.helpers import SHOTS, signed_in, wait_until
+from tests.integration.helpers import SHOTS, images_decoded, signed_in, wait_until
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -103,8 +103,7 @@ def test_precision_64_against_32_on_the_cpu_differs_and_is_classified_with_figur
     page.wait_for_selector("#provenance-pair")
     assert "differs" in page.locator("#provenance-pair tr", has_text="precision").inner_text()
     assert page.locator("#array-diffs tbody tr").count() == len(arrays)
-    page.wait_for_function("Array.from(document.querySelectorAll('#figures img'))"
-                           ".every(i => i.complete && i.naturalWidth > 0)")
+    images_decoded(page, "#figures img")
     page.screenshot(path=SHOTS / "audit_entry_precision.png", full_page=True)
     csv = page.request.get(f"{stack.url}/audit.csv?classification={entry['classification']}")
     assert csv.ok and f"\n{entry['id']}," in csv.text()

@@ -16,7 +16,8 @@ from sqlalchemy.orm import Session
 from grader.models import CaseRun, Course, Submission, utcnow
 from tests import services
 from tests.factories import reference_sheet
-from tests.integration.helpers import SHOTS, WAIT_LIMIT_S, case_runs, events, grades_of, signed_in, wait_until
+from tests.integration.helpers import (SHOTS, WAIT_LIMIT_S, case_runs, events, grades_of, images_decoded, signed_in,
+                                       wait_until)
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 COURSE = "l03-test"
@@ -82,8 +83,7 @@ def test_predictions_and_measurements_by_backend_equal_the_json_and_the_charts_l
     charts = [p["chart"] for p in plots.values()] + [data["backends"]["chart"]]
     assert sorted(page.locator("figure.chart img").evaluate_all("els => els.map(e => e.getAttribute('src'))")) \
         == sorted(charts)
-    page.wait_for_function("Array.from(document.querySelectorAll('figure.chart img'))"
-                           ".every(i => i.complete && i.naturalWidth > 0)")  # every chart decoded, none broken
+    images_decoded(page, "figure.chart img")  # every chart decoded, none broken
     page.locator("#predictions").scroll_into_view_if_needed()
     page.screenshot(path=SHOTS / "instructor_dashboard_predictions.png", full_page=True)
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.integration.helpers import SHOTS, signed_in
+from tests.integration.helpers import SHOTS, images_decoded, signed_in
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -40,8 +40,7 @@ def test_a_student_signs_in_and_reads_her_report_item_by_item(browser, stack, gr
     assert images.count() >= 5
     names = [images.nth(i).get_attribute("alt") for i in range(images.count())]
     assert "friction_compare_friction-baseline_vs_sheet.table_exercise.png" in names
-    page.wait_for_function("Array.from(document.querySelectorAll('#figures img'))"
-                           ".every(i => i.complete && i.naturalWidth > 0)")  # every PNG decoded, none broken
+    images_decoded(page, "#figures img")  # every PNG decoded, none broken
     download = page.request.get(f"{stack.url}/submissions/{submission}/results.json")  # with the session cookie
     assert download.ok and download.json()["total"] == grade["total"]
     assert [i["id"] for i in download.json()["items"]] == [i["id"] for i in grade["items"]]
