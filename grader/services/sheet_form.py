@@ -11,7 +11,8 @@ from __future__ import annotations
 import math
 import types
 import typing
-from dataclasses import dataclass, field
+import dataclasses
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import yaml
@@ -330,10 +331,10 @@ class ConfigCheck:
     role: str
     baseline: str
     may_change: list[str]
-    changes: list = field(default_factory=list)
-    violations: list = field(default_factory=list)
+    changes: list = dataclasses.field(default_factory=list)
+    violations: list = dataclasses.field(default_factory=list)
     verdict: str = ""
-    voids: list[str] = field(default_factory=list)
+    voids: list[str] = dataclasses.field(default_factory=list)
 
 
 def config_checks(*, session: Session, sheet: dict, part: str, book: Rubric

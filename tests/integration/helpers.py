@@ -4,12 +4,17 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from grader.models import CaseRun, Event, Grade
+from tests import services
 from tests.factories import ROOT
 
 # Safety stop only (a cold kernel cache can take minutes); no test asserts how long anything took.
@@ -67,3 +72,47 @@ def signed_in(browser, stack, who: str, *, width: int = 1280):
     page.fill("#token", stack.tokens[who])
     page.click("button[type=submit]")
     return page
+
+
+@dataclass
+class MeasuredCourseApi:
+    """The API alone (uvicorn) over a fresh PostgreSQL database whose course's lesson cases are stored as really
+    measured: checkpoint sheets are graded in the request, and no worker is needed."""
+
+    url: str
+    tokens: dict[str, str]
+
+    def client(self, who: str, token: str | None = None):
+        from grader.client import Client
+
+        return Client(self.url, token or self.tokens[who])
+
+
+@contextmanager
+def measured_course_api(folder: Path, measured, *, course: str) -> Iterator[MeasuredCourseApi]:
+    """A MeasuredCourseApi for `course` (people of tests.factories.create_people), the lesson's runs stored from the
+    session's `measured` results by another course's instructor."""
+    from grader.core.db import make_engine, migrate
+    from tests.factories import create_people, store_lesson_runs
+
+    with services.postgres_database() as database_url:
+        migrate(database_url)
+        engine = make_engine(database_url)
+        with Session(engine) as session:
+            tokens = create_people(session, course=course, other_course="other-course")
+            session.commit()
+            store_lesson_runs(session, measured, by="eve")
+        engine.dispose()
+        env = dict(os.environ, DATABASE_URL=database_url, BROKER_URL=services.REDIS_URL, DATA_DIR=str(folder),
+                   PYTHONPATH=str(services.ROOT))
+        port = services.free_port()
+        proc = services.start_api(env, port, folder / "api.log")
+        try:
+            yield MeasuredCourseApi(f"http://127.0.0.1:{port}", tokens)
+        finally:
+            services.stop(proc)
+
+
+def at(**delta) -> str:
+    """Now plus `delta` (timedelta's keywords), whole seconds, as RFC 3339 UTC."""
+    return (datetime.now(UTC).replace(microsecond=0) + timedelta(**delta)).isoformat()

@@ -5,61 +5,21 @@ checkpoint sheets are graded in the request on them and no worker is needed. The
 
 from __future__ import annotations
 
-import os
-from dataclasses import dataclass
-from datetime import UTC, datetime, timedelta
-
 import pytest
 
-from tests import services
-from tests.factories import create_people, store_lesson_runs
 from tests.grader.test_assignments import checkpoint_sheet
-from tests.integration.helpers import SHOTS, signed_in
+from tests.integration.helpers import SHOTS, at, measured_course_api, signed_in
 
 pytestmark = pytest.mark.integration
 COURSE = "l03-assign"
-
-
-@dataclass
-class Api:
-    url: str
-    tokens: dict[str, str]
-
-    def client(self, who: str):
-        from grader.client import Client
-
-        return Client(self.url, self.tokens[who])
 
 
 @pytest.fixture(scope="module")
 def api(tmp_path_factory, measured):
     """The API alone (uvicorn) on a fresh PostgreSQL database where the lesson's cases were measured; nothing is ever
     enqueued here."""
-    from sqlalchemy.orm import Session
-
-    from grader.core.db import make_engine, migrate
-
-    data_dir = tmp_path_factory.mktemp("assignment-page")
-    with services.postgres_database() as database_url:
-        migrate(database_url)
-        engine = make_engine(database_url)
-        with Session(engine) as session:
-            tokens = create_people(session, course=COURSE, other_course="other-course")
-            session.commit()
-            store_lesson_runs(session, measured, by="eve")
-        engine.dispose()
-        env = dict(os.environ, DATABASE_URL=database_url, BROKER_URL=services.REDIS_URL, DATA_DIR=str(data_dir),
-                   PYTHONPATH=str(services.ROOT))
-        port = services.free_port()
-        proc = services.start_api(env, port, data_dir / "api.log")
-        try:
-            yield Api(f"http://127.0.0.1:{port}", tokens)
-        finally:
-            services.stop(proc)
-
-
-def at(**delta) -> str:
-    return (datetime.now(UTC).replace(microsecond=0) + timedelta(**delta)).isoformat()
+    with measured_course_api(tmp_path_factory.mktemp("assignment-page"), measured, course=COURSE) as running:
+        yield running
 
 
 def test_the_instructor_opens_an_assignment_from_the_dashboard_and_reads_every_students_grade(browser, api):

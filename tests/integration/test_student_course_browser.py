@@ -5,60 +5,20 @@ out/screenshots/ (or $SCREENSHOTS_DIR)."""
 
 from __future__ import annotations
 
-import os
-from dataclasses import dataclass
-from datetime import UTC, datetime, timedelta
-
 import pytest
 
-from tests import services
-from tests.factories import create_people, store_lesson_runs
 from tests.grader.test_assignments import checkpoint_sheet
-from tests.integration.helpers import SHOTS
+from tests.integration.helpers import SHOTS, at, measured_course_api
 
 pytestmark = pytest.mark.integration
 COURSE = "l03-course"
 
 
-@dataclass
-class Api:
-    url: str
-    tokens: dict[str, str]
-
-    def client(self, who: str, token: str | None = None):
-        from grader.client import Client
-
-        return Client(self.url, token or self.tokens[who])
-
-
 @pytest.fixture(scope="module")
 def service(tmp_path_factory, measured):
     """The API alone (uvicorn) on a fresh PostgreSQL database where the lesson's cases were measured."""
-    from sqlalchemy.orm import Session
-
-    from grader.core.db import make_engine, migrate
-
-    data_dir = tmp_path_factory.mktemp("course-page")
-    with services.postgres_database() as database_url:
-        migrate(database_url)
-        engine = make_engine(database_url)
-        with Session(engine) as session:
-            tokens = create_people(session, course=COURSE, other_course="other-course")
-            session.commit()
-            store_lesson_runs(session, measured, by="eve")
-        engine.dispose()
-        env = dict(os.environ, DATABASE_URL=database_url, BROKER_URL=services.REDIS_URL, DATA_DIR=str(data_dir),
-                   PYTHONPATH=str(services.ROOT))
-        port = services.free_port()
-        proc = services.start_api(env, port, data_dir / "api.log")
-        try:
-            yield Api(f"http://127.0.0.1:{port}", tokens)
-        finally:
-            services.stop(proc)
-
-
-def at(**delta) -> str:
-    return (datetime.now(UTC).replace(microsecond=0) + timedelta(**delta)).isoformat()
+    with measured_course_api(tmp_path_factory.mktemp("course-page"), measured, course=COURSE) as running:
+        yield running
 
 
 def tab_to(page, selector: str, limit: int = 60) -> list[str]:
@@ -112,7 +72,7 @@ def test_a_student_signs_in_with_her_link_and_reads_her_course_page_with_the_key
     # C3 waits for the release: the score is partly pending, and under "best" which attempt counts stays hidden.
     assert "not shown yet" in page.inner_text(f"#assignment-{week2['id']}-counted")
     assert "part pending" in page.inner_text(f"#assignment-{week2['id']}-attempts")
-    assert page.inner_text(f".assignment:has-text('Week 4 exercises') .state") == "not open yet"
+    assert page.inner_text(".assignment:has-text('Week 4 exercises') .state") == "not open yet"
     # The phase is said in words, never by colour alone.
     phases = [page.inner_text(f"#assignment-{a['id']}-phase") for a in (week3, week2)]
     assert phases == ["open", "open, past the due date"]
