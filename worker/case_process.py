@@ -163,7 +163,7 @@ def load_result(
     if exit_status is None:
         return CaseResult(status="timeout", error=f"case process exceeded the {timeout_s:.0f} s time limit", **base)
     if exit_status != 0:
-        return CaseResult(status="failed", error=_failure_reason(exit_status, stderr), **base)
+        return CaseResult(status="failed", error=_failure_reason(exit_status, stderr, stdout), **base)
 
     arrays_path, provenance_path = out_dir / "arrays.npz", out_dir / "provenance.json"
     if not arrays_path.exists() or not provenance_path.exists():
@@ -201,10 +201,14 @@ def _provenance_problems(spec, provenance: Provenance, mode: str) -> list[str]:
     return problems
 
 
-def _failure_reason(exit_status: int, stderr: str) -> str:
+def _failure_reason(exit_status: int, stderr: str, stdout: str = "") -> str:
+    """The marked error line, else stderr's last line, else stdout's: a case process that died importing Genesis
+    on a GPU host left its traceback on stdout only, and the reason must quote it rather than say nothing."""
     lines = [line for line in stderr.strip().splitlines() if line.strip()]
     marked = [line for line in lines if line.startswith(("PROVENANCE ERROR", "RENDER ERROR"))]
-    tail = marked[-1] if marked else (lines[-1] if lines else "no output on stderr")
+    out = [line for line in stdout.strip().splitlines() if line.strip()]
+    tail = marked[-1] if marked else (lines[-1] if lines else (
+        f"no output on stderr; stdout ends: {out[-1].strip()}" if out else "no output on stderr or stdout"))
     kind = {EXIT_PROVENANCE: "provenance error", EXIT_RENDER: "render error"}.get(exit_status, "case process failed")
     return f"{kind} (exit {exit_status}): {tail}"
 

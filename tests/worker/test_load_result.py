@@ -95,3 +95,14 @@ def test_a_time_axis_that_is_not_the_engine_dt_is_refused(tmp_path):
     write_case_folder(tmp_path, arrays, provenance(N3))
     result = load_result(N3, tmp_path, exit_status=0, mode="isolated")
     assert result.status == "invalid" and "t: sample spacing" in result.error and "engine dt 0.02 s" in result.error
+
+
+def test_a_process_that_died_with_its_traceback_on_stdout_is_failed_quoting_it(tmp_path):
+    """As seen on a GPU host whose image lacked libGL: the import error reached stdout only."""
+    (tmp_path / "stdout.txt").write_text("Traceback (most recent call last):\n  ...\nImportError: libGL.so.1: cannot "
+                                         "open shared object file\n")
+    (tmp_path / "stderr.txt").write_text("")
+    result = load_result(N3, tmp_path, exit_status=1, mode="isolated")
+    assert result.status == "failed"
+    assert result.error == ("case process failed (exit 1): no output on stderr; stdout ends: ImportError: libGL.so.1: "
+                            "cannot open shared object file")
