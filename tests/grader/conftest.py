@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import pytest
@@ -25,8 +27,9 @@ class Api:
         self.priorities.append(priority)
 
 
-@pytest.fixture
-def api(tmp_path, monkeypatch):
+@contextmanager
+def app_on(url: str, tmp_path, monkeypatch) -> Iterator[Api]:
+    """The app in-process on the database at `url` (migrated, people created), enqueueing recorded."""
     from fastapi.testclient import TestClient
     from sqlalchemy.orm import Session
 
@@ -36,7 +39,6 @@ def api(tmp_path, monkeypatch):
     from grader.services import quotas
     from grader.settings import settings
 
-    url = f"sqlite:///{tmp_path / 'grader.db'}"
     monkeypatch.setattr(settings, "database_url", url)
     monkeypatch.setattr(settings, "artifacts_dir", tmp_path / "artifacts")
     monkeypatch.setattr(db, "_engine", None)
@@ -47,9 +49,17 @@ def api(tmp_path, monkeypatch):
     quotas._limiter.cache_clear()  # a fresh count per test: user ids repeat across the tests' databases
     state = Api(client=TestClient(app), tokens=tokens)
     monkeypatch.setattr(dispatch, "send_case_run", state.send_case_run)
-    yield state
-    db.get_engine().dispose()
-    db._engine = None
+    try:
+        yield state
+    finally:
+        db.get_engine().dispose()
+        db._engine = None
+
+
+@pytest.fixture
+def api(tmp_path, monkeypatch):
+    with app_on(f"sqlite:///{tmp_path / 'grader.db'}", tmp_path, monkeypatch) as state:
+        yield state
 
 
 @pytest.fixture

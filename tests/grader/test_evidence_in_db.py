@@ -14,8 +14,8 @@ from sqlalchemy import func, select, text
 
 import rubric
 from tests import services
-from tests.factories import create_people, reference_sheet, rubric_v3, sheet_results
-from tests.grader.conftest import Api
+from tests.factories import reference_sheet, rubric_v3, sheet_results
+from tests.grader.conftest import app_on
 
 
 def recorded_case_process(measured: dict):
@@ -142,29 +142,8 @@ def test_grade_regrade_and_downloads_work_after_the_workers_folder_is_deleted(ap
 @pytest.fixture
 def pg_api(tmp_path, monkeypatch):
     """The `api` fixture of tests/grader on a fresh PostgreSQL database (evidence as bytea)."""
-    from fastapi.testclient import TestClient
-    from sqlalchemy.orm import Session
-
-    from grader import dispatch
-    from grader.core import db
-    from grader.main import app
-    from grader.services import quotas
-    from grader.settings import settings
-
-    with services.postgres_database() as url:
-        monkeypatch.setattr(settings, "database_url", url)
-        monkeypatch.setattr(settings, "artifacts_dir", tmp_path / "artifacts")
-        monkeypatch.setattr(db, "_engine", None)
-        db.migrate(url)
-        with Session(db.get_engine()) as session:
-            tokens = create_people(session, course="l03", other_course="other")
-            session.commit()
-        quotas._limiter.cache_clear()
-        state = Api(client=TestClient(app), tokens=tokens)
-        monkeypatch.setattr(dispatch, "send_case_run", lambda *args, priority=None: state.sent.append(args))
+    with services.postgres_database() as url, app_on(url, tmp_path, monkeypatch) as state:
         yield state
-        db.get_engine().dispose()
-        db._engine = None
 
 
 @pytest.mark.integration

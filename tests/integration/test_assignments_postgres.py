@@ -9,8 +9,7 @@ from __future__ import annotations
 import pytest
 
 from tests import services
-from tests.factories import create_people
-from tests.grader.conftest import Api, lesson_measured  # noqa: F401 - the fixture, for the tests below
+from tests.grader.conftest import app_on, lesson_measured  # noqa: F401 - the fixture, for the tests below
 from tests.grader.test_assignments import (  # noqa: F401 - collected here again, against PostgreSQL
     lesson_cases_stored,
     test_a_checkpoint_submission_on_a_service_that_never_measured_the_lesson_queues_its_cases,
@@ -44,26 +43,8 @@ def database_url():
 @pytest.fixture
 def api(database_url, tmp_path, monkeypatch):
     """The `api` fixture of tests/grader, on a fresh PostgreSQL database."""
-    from fastapi.testclient import TestClient
-    from sqlalchemy.orm import Session
-
-    from grader import dispatch
-    from grader.core import db
-    from grader.main import app
-    from grader.settings import settings
-
-    monkeypatch.setattr(settings, "database_url", database_url)
-    monkeypatch.setattr(settings, "artifacts_dir", tmp_path / "artifacts")
-    monkeypatch.setattr(db, "_engine", None)
-    db.migrate(database_url)
-    with Session(db.get_engine()) as session:
-        tokens = create_people(session, course="l03", other_course="other")
-        session.commit()
-    state = Api(client=TestClient(app), tokens=tokens)
-    monkeypatch.setattr(dispatch, "send_case_run", state.send_case_run)
-    yield state
-    db.get_engine().dispose()
-    db._engine = None
+    with app_on(database_url, tmp_path, monkeypatch) as state:
+        yield state
 
 
 def test_the_migration_creates_exactly_the_models_on_postgresql(database_url):
