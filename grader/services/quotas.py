@@ -1,5 +1,5 @@
-"""Per-person quotas on work that costs a Genesis run no reuse can shorten (audit re-runs), counted by the `limits`
-library in settings.rate_limit_storage_url, the same storage as the API's per-token submission limit."""
+"""Per-person quotas on costly work, counted by the `limits` library in settings.rate_limit_storage_url: the API's
+per-token submission limit (grader.api.ratelimit) and each staff member's audit re-runs."""
 
 from __future__ import annotations
 
@@ -20,12 +20,20 @@ def _limiter(storage_url: str) -> MovingWindowRateLimiter:
     return MovingWindowRateLimiter(storage_from_string(storage_url))
 
 
-def take(what: str, user_id: int, rule: str, *, field: str) -> None:
-    """Count one `what` against the user; past `rule` ("20/hour") raise Refused with the seconds until one frees."""
+def wait_for(what: str, key: str, rule: str) -> int | None:
+    """Count one `what` against `key` under `rule` ("20/hour"): None when within it, else the seconds until one
+    frees (a refused one is not counted)."""
     item = parse(rule)
     limiter = _limiter(settings.rate_limit_storage_url)
-    if not limiter.hit(item, what, str(user_id)):
-        reset_at, _ = limiter.get_window_stats(item, what, str(user_id))
-        retry_after = max(1, math.ceil(reset_at - time.time()))
-        raise Refused(field, f"at most {item} {what} each; try again in {retry_after} s", retry_after,
+    if limiter.hit(item, what, key):
+        return None
+    reset_at, _ = limiter.get_window_stats(item, what, key)
+    return max(1, math.ceil(reset_at - time.time()))
+
+
+def take(what: str, user_id: int, rule: str, *, field: str) -> None:
+    """Count one `what` against the user; past `rule` raise Refused with the seconds until one frees."""
+    retry_after = wait_for(what, str(user_id), rule)
+    if retry_after is not None:
+        raise Refused(field, f"at most {parse(rule)} {what} each; try again in {retry_after} s", retry_after,
                       detail=f"too many {what}")
