@@ -5,10 +5,15 @@ from __future__ import annotations
 from pathlib import Path
 
 from fastapi.templating import Jinja2Templates
+from jinja2 import Environment, FileSystemLoader
 
 from grader.core.timezones import local
 
-TEMPLATES = Jinja2Templates(directory=str(Path(__file__).resolve().parent.parent / "templates"))
+TEMPLATES = Jinja2Templates(env=Environment(loader=FileSystemLoader(Path(__file__).resolve().parent.parent / "templates"),
+                                             autoescape=True, extensions=["jinja2.ext.i18n"]))
+# gettext in templates: `{{ _("text") }}`, `{% trans %}`. Until the catalogues are installed per request, the
+# text is the English msgid itself.
+TEMPLATES.env.install_null_translations(newstyle=True)
 
 
 def local_time(at, user, seconds: bool = False) -> str:
