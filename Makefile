@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: run test check bench clean
+.PHONY: run test check bench clean i18n
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -14,6 +14,9 @@ $(STAMP): pyproject.toml
 	# Browser tests use Debian's chromium; Playwright's own browser download is unreachable from these machines.
 	test -x /usr/bin/chromium || apt-get install -y --no-install-recommends chromium \
 		|| (apt-get update && apt-get install -y --no-install-recommends chromium)
+	# The Chinese pages' screenshots (tests/integration/test_chinese_walk_browser.py) need one CJK font.
+	test -f /usr/share/fonts/truetype/wqy/wqy-microhei.ttc || apt-get install -y --no-install-recommends fonts-wqy-microhei \
+		|| (apt-get update && apt-get install -y --no-install-recommends fonts-wqy-microhei)
 	touch $(STAMP)
 
 # The embedded service (SQLite, filesystem broker, a local Celery worker): grades examples/l03/reference.yaml,
@@ -34,3 +37,14 @@ bench: $(STAMP)
 
 clean:
 	rm -rf out
+
+# The pages' translations (grader/translations, grader/i18n.py): extract every _()/N_() msgid of grader/ and its
+# templates into messages.pot, merge it into each language's .po (new msgids arrive empty), then list what is still
+# untranslated (exit status 1 while anything is). Fill the .po's msgstr lines and run it again; no compile step:
+# the app compiles the .po when it starts.
+i18n: $(STAMP)
+	$(VENV)/bin/pybabel extract -F babel.cfg --add-location=file --sort-by-file --project=l03-grader \
+		--msgid-bugs-address= -o grader/translations/messages.pot .
+	$(VENV)/bin/pybabel update -i grader/translations/messages.pot -d grader/translations -D messages \
+		--no-fuzzy-matching --ignore-obsolete
+	$(PY) -m grader.i18n

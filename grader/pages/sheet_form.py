@@ -5,6 +5,8 @@ the not-found page."""
 
 from __future__ import annotations
 
+import hashlib
+import json
 from typing import Annotated
 
 from fastapi import APIRouter, Depends, File, Request, UploadFile, status
@@ -12,6 +14,7 @@ from fastapi.responses import HTMLResponse, PlainTextResponse, RedirectResponse,
 from starlette.datastructures import FormData
 
 from grader import dispatch
+from grader.i18n import N_
 from grader.api.deps import SessionDep
 from grader.api.errors import status_of
 from grader.core.rubrics import course_rubric
@@ -123,8 +126,63 @@ def _posted_sheet(session, user: User, assignment: Assignment | None, form) -> d
     return sheet
 
 
+def sheet_digest(sheet: dict) -> str:
+    """Names the exact draft a confirmation showed, so that "Submit attempt N" submits that draft and no other."""
+    return hashlib.sha256(json.dumps(sheet, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:24]
+
+
+def _precheck(session, user: User, assignment: Assignment | None, sheet: dict) -> DomainError | None:
+    """The refusals a submission now would meet, in the service's order (the assignment's rules, then the sheet's);
+    what only submitting can tell (a staff power, a queue's cap) the confirmed submit still answers."""
+    if assignment is not None:
+        try:
+            assignments.admit(session=session, assignment=assignment, student=user, now=utcnow())
+        except Refused as exc:
+            return exc
+    part, _ = _part_and_lesson(assignment)
+    problems = form_logic.problems(sheet, part)
+    return Invalid("invalid sheet", problems) if problems else None
+
+
+def _confirmation(request: Request, session, user: User, assignment: Assignment | None, sheet: dict, *,
+                  notice: str | None = None) -> HTMLResponse:
+    """The step between the form and the submission: the attempt it will be, how late, the penalty, and the two ways
+    on (submit this draft, or back to the form with the draft kept)."""
+    part, lesson = _part_and_lesson(assignment)
+    return TEMPLATES.TemplateResponse(request, "submit_confirm.html", {
+        "user": user, "a": assignment, "part": part, "lesson": lesson, "path": _path(assignment),
+        "standing": _standing(session, user, assignment), "digest": sheet_digest(sheet), "notice": notice,
+        "questions": len(assignments.item_ids(lesson, part)),
+    })
+
+
+def _confirmed(request: Request, session, user: User, assignment: Assignment | None, form: FormData) -> Response:
+    """Submit the saved draft the confirmation named; a draft or attempt changed since is confirmed again."""
+    sheet = _draft_sheet(session, user, assignment)
+    standing = _standing(session, user, assignment)
+    if form.get("digest") != sheet_digest(sheet):
+        return _confirmation(request, session, user, assignment, sheet, notice=N_(
+            "Your draft changed after this confirmation was shown (another tab or window saved it): "
+            "here is the draft as it is now."))
+    if standing and standing.get("attempt") and str(standing["attempt"]) != form.get("attempt"):
+        return _confirmation(request, session, user, assignment, sheet, notice=N_(
+            "Another submission was made meanwhile: this one would now take the attempt named below."))
+    try:
+        submission = submissions.submit(session=session, user=user, sheet=sheet,
+                                        assignment_id=assignment.id if assignment else None, sender=dispatch)
+    except NotFound:
+        raise
+    except DomainError as exc:  # the rule beside the form; the draft stays as it was
+        session.rollback()
+        return _render(request, session, user, assignment, sheet, errors=exc.errors, refusal=exc,
+                       code=status_of(exc), checked=True)
+    return RedirectResponse(f"/submissions/{submission.id}/progress", status_code=status.HTTP_303_SEE_OTHER)
+
+
 def _act(request: Request, session, user: User, assignment: Assignment | None, form: FormData) -> Response:
     action = form.get("action") or "save"
+    if action == "confirm":  # the confirmation's form carries no answers: it submits the saved draft
+        return _confirmed(request, session, user, assignment, form)
     if action == "from_last":
         last = drafts.last_submitted(session=session, user=user, assignment=assignment)
         if last is None:
@@ -143,17 +201,12 @@ def _act(request: Request, session, user: User, assignment: Assignment | None, f
         problems = form_logic.problems(sheet, part)
         notice = "The sheet passes every rule a submission checks." if not problems else None
         return _render(request, session, user, assignment, sheet, errors=problems, checked=True, notice=notice)
-    if action == "submit":
-        try:
-            submission = submissions.submit(session=session, user=user, sheet=sheet,
-                                            assignment_id=assignment.id if assignment else None, sender=dispatch)
-        except NotFound:
-            raise
-        except DomainError as exc:  # the rule beside the form; the draft, saved above, stays
-            session.rollback()
-            return _render(request, session, user, assignment, sheet, errors=exc.errors, refusal=exc,
-                           code=status_of(exc), checked=True)
-        return RedirectResponse(f"/submissions/{submission.id}", status_code=status.HTTP_303_SEE_OTHER)
+    if action == "submit":  # first the confirmation; a submission it would refuse says the rule beside the form
+        refusal = _precheck(session, user, assignment, sheet)
+        if refusal is not None:
+            return _render(request, session, user, assignment, sheet, errors=refusal.errors, refusal=refusal,
+                           code=status_of(refusal), checked=True)
+        return _confirmation(request, session, user, assignment, sheet)
     return _render(request, session, user, assignment, sheet, notice="Draft saved.")
 
 
@@ -192,7 +245,7 @@ def assignment_sheet(request: Request, assignment: MembersAssignment, session: S
 @router.post("/assignments/{assignment_id}/sheet", response_class=HTMLResponse)
 def assignment_sheet_action(request: Request, assignment: MembersAssignment, session: SessionDep, user: Writer,
                             form: Posted):
-    """Save, check, export (YAML), start from the last submission, or submit the form."""
+    """Save, check, export (YAML), start from the last submission, or submit the form (after its confirmation)."""
     return _act(request, session, user, assignment, form)
 
 

@@ -7,17 +7,25 @@
   if (!form || !form.dataset.draftUrl || !window.fetch) { return; }
   var timer = null;
   var DELAY_MS = 800;
+  // The page's own language: its messages come in data-msg-* attributes, translated with the page.
+  function say(name, fallback, values) {
+    var text = form.dataset[name] || fallback;
+    Object.keys(values || {}).forEach(function (key) { text = text.split("{" + key + "}").join(values[key]); });
+    return text;
+  }
 
   function save() {
     timer = null;
-    status.textContent = "saving…";
+    status.textContent = say("msgSaving", "saving…");
     fetch(form.dataset.draftUrl, { method: "POST", body: new FormData(form), credentials: "same-origin" })
       .then(function (response) {
         return response.text().then(function (text) {
-          status.textContent = response.ok ? "draft " + text : "draft not saved (" + response.status + "): use Save draft";
+          status.textContent = response.ok
+            ? say("msgSaved", "draft saved {when}", { when: text.replace(/^saved /, "") })
+            : say("msgRefused", "draft not saved ({status}): use Save draft", { status: response.status });
         });
       })
-      .catch(function () { status.textContent = "draft not saved (offline?): use Save draft"; });
+      .catch(function () { status.textContent = say("msgOffline", "draft not saved (offline?): use Save draft"); });
   }
 
   function later() {

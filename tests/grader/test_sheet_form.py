@@ -214,10 +214,13 @@ def test_a_refused_submission_names_the_rule_and_keeps_the_draft(api):
 
 def test_a_valid_form_submits_through_the_api_service_and_can_start_the_next_draft(api):
     page = import_yaml(api, REFERENCE_YAML.read_text())
-    done = api.client.post("/sheet", headers=api.as_("alice"), data={**form_fields(page.text), "action": "submit"},
+    from tests.grader.test_submit_confirm import confirm_fields
+
+    shown = api.client.post("/sheet", headers=api.as_("alice"), data={**form_fields(page.text), "action": "submit"})
+    done = api.client.post("/sheet", headers=api.as_("alice"), data=confirm_fields(shown.text),  # its confirmation
                            follow_redirects=False)
     assert done.status_code == 303, done.text
-    sid = int(done.headers["location"].rsplit("/", 1)[1])
+    sid = int(done.headers["location"].split("/")[2])  # /submissions/ID/progress
     stored = api.client.get(f"/v1/submissions/{sid}", headers=api.as_("alice"))
     assert stored.status_code == 200, stored.text
     from grader.core.db import new_session

@@ -70,7 +70,7 @@ def signed_in(browser, stack, who: str, *, width: int = 1280):
     page.goto(f"{stack.url}/submissions")
     assert page.url.startswith(f"{stack.url}/sign-in")
     page.fill("#token", stack.tokens[who])
-    page.click("button[type=submit]")
+    page.click("form[action='/sign-in'] button[type=submit]")  # not the header's language buttons
     return page
 
 
@@ -116,3 +116,13 @@ def measured_course_api(folder: Path, measured, *, course: str) -> Iterator[Meas
 def at(**delta) -> str:
     """Now plus `delta` (timedelta's keywords), whole seconds, as RFC 3339 UTC."""
     return (datetime.now(UTC).replace(microsecond=0) + timedelta(**delta)).isoformat()
+
+
+def charts_drawn(page, selector: str = "#figures .chart[data-src]") -> None:
+    """Wait until every browser chart `selector` matches is drawn (grader/static/report_charts.js records how many
+    series it drew), none failed. Polled from here: page.wait_for_function is refused by the pages' CSP."""
+    wait_until(lambda: all(page.locator(selector).evaluate_all("els => els.map(e => e.hasAttribute('data-series'))")),
+               f"every {selector} drawn", limit_s=60)
+    counts = page.locator(selector).evaluate_all("els => els.map(e => Number(e.getAttribute('data-series')))")
+    assert counts and all(n > 0 for n in counts), counts
+    assert page.locator("#figures .chart-failed").count() == 0

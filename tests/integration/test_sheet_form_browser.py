@@ -51,7 +51,8 @@ def test_a_student_fills_checks_and_submits_the_sheet_from_the_form(browser, sta
     assert "passes every rule" in page.inner_text("#notice")
     page.screenshot(path=SHOTS / "sheet_form.png", full_page=True)
     page.click("button[value=submit]")
-    page.wait_for_url(f"{stack.url}/submissions/*")
-    submission = int(page.url.rsplit("/", 1)[1])
+    page.click("#confirm-submit")  # the confirmation (attempt, lateness, penalty) comes first
+    page.wait_for_url(f"{stack.url}/submissions/*/progress")
+    submission = int(page.url.split("/")[-2])
     final = stack.client("alice").wait(submission, poll_s=0.5, timeout_s=WAIT_LIMIT_S)
     assert final["status"] == "graded", final
