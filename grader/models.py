@@ -547,3 +547,110 @@ class LtiScore(Base):
     error: Mapped[str | None] = mapped_column(Text)
     tries: Mapped[int] = mapped_column(Integer, default=0)
     sent_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+
+class Override(Base):
+    """An instructor's score for one item of one submission, with the comment that says why. The measured verdict is
+    never changed: the grade it produced keeps it beside the override (grader.services.overrides). A later override
+    of the same item supersedes this one, which is kept; at most one is current per item (a partial unique index)."""
+
+    __tablename__ = "overrides"
+    __table_args__ = (Index("uq_overrides_current", "submission_id", "item_id", unique=True,
+                            postgresql_where=text("superseded_at IS NULL"),
+                            sqlite_where=text("superseded_at IS NULL")),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), index=True)
+    item_id: Mapped[str] = mapped_column(String(16))
+    score: Mapped[float] = mapped_column(Float)
+    comment: Mapped[str] = mapped_column(Text)
+    by_id: Mapped[int] = mapped_column(ForeignKey("users.id"))
+    at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    # The grade this override produced (it supersedes the one it overrode).
+    grade_id: Mapped[int | None] = mapped_column(ForeignKey("grades.id"))
+    superseded_at: Mapped[datetime | None] = mapped_column(DateTime)
+    superseded_by_id: Mapped[int | None] = mapped_column(ForeignKey("overrides.id"))
+
+    by: Mapped[User] = relationship(lazy="joined")
+
+
+class ReviewRequest(Base):
+    """A student's request that an instructor review one item of a graded submission. Open while `answered_at` is
+    NULL; at most one open request per submission and item (a partial unique index). Answered requests are kept."""
+
+    __tablename__ = "review_requests"
+    __table_args__ = (Index("uq_review_requests_open", "submission_id", "item_id", unique=True,
+                            postgresql_where=text("answered_at IS NULL"), sqlite_where=text("answered_at IS NULL")),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), index=True)
+    item_id: Mapped[str] = mapped_column(String(16))
+    student_id: Mapped[int] = mapped_column(ForeignKey("users.id"))
+    message: Mapped[str] = mapped_column(Text)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    answer: Mapped[str | None] = mapped_column(Text)
+    answered_by_id: Mapped[int | None] = mapped_column(ForeignKey("users.id"))
+    answered_at: Mapped[datetime | None] = mapped_column(DateTime)
+    override_id: Mapped[int | None] = mapped_column(ForeignKey("overrides.id"))  # set when answered with one
+
+    student: Mapped[User] = relationship(foreign_keys=[student_id], lazy="joined")
+    answered_by: Mapped[User | None] = relationship(foreign_keys=[answered_by_id], lazy="joined")
+    submission: Mapped[Submission] = relationship()
+    override: Mapped[Override | None] = relationship()
+
+
+class RubricSignoff(Base):
+    """An instructor's sign-off of one rubric version's content for their course: who, when, and a note. A row of its
+    own, so signing never changes the version's content or hash; `content_hash` names the content signed."""
+
+    __tablename__ = "rubric_signoffs"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    version_id: Mapped[int] = mapped_column(ForeignKey("rubric_versions.id"), index=True)
+    course_id: Mapped[int] = mapped_column(ForeignKey("courses.id"), index=True)
+    content_hash: Mapped[str] = mapped_column(String(64))
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id"))
+    at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    note: Mapped[str] = mapped_column(Text)
+
+    user: Mapped[User] = relationship(lazy="joined")
+
+
+class CourseChange(Base):
+    """One change to a course's set-up (its time zone, an assignment, an extension, a release, the roster, a sign-in
+    link), with who made it and when. Written by the service that makes the change, in the same transaction, so the
+    pages, the API and the command line all record; never updated. `detail` holds the values before and after
+    (never a token or a link's secret)."""
+
+    __tablename__ = "course_changes"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    course_id: Mapped[int] = mapped_column(ForeignKey("courses.id"), index=True)
+    by_id: Mapped[int] = mapped_column(ForeignKey("users.id"))
+    at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    kind: Mapped[str] = mapped_column(String(32))  # grader.services.course_changes.ChangeKind
+    assignment_id: Mapped[int | None] = mapped_column(ForeignKey("assignments.id"), index=True)
+    summary: Mapped[str] = mapped_column(Text)
+    detail: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
+
+    by: Mapped[User] = relationship(lazy="joined")
+
+
+class LtiOutbox(Base):
+    """An assignment whose counted scores changed (graded, released, overridden, regraded) and are due for the LMS
+    gradebooks: marked in the change's own transaction, sent by the reconciler's pass (grader.services.lti_outbox).
+    `due_at` NULL: nothing to send. `attempts` counts the failed passes since the last whole send; each pushes
+    `due_at` further out (backoff, capped), and `last_error` is what the instructor's LTI page shows of it."""
+
+    __tablename__ = "lti_outbox"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    assignment_id: Mapped[int] = mapped_column(ForeignKey("assignments.id"), unique=True)
+    changed_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    due_at: Mapped[datetime | None] = mapped_column(DateTime, index=True)
+    attempts: Mapped[int] = mapped_column(Integer, default=0)
+    tried_at: Mapped[datetime | None] = mapped_column(DateTime)
+    last_error: Mapped[str | None] = mapped_column(Text)
+    waiting: Mapped[str | None] = mapped_column(Text)  # why some student's score is held back (withheld items)
+
+    assignment: Mapped[Assignment] = relationship()

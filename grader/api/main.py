@@ -3,6 +3,7 @@
 from fastapi import APIRouter, Depends, Request
 from fastapi.exceptions import RequestValidationError
 
+from grader.api.routes import reviews
 from grader.api.routes import (assignments, audit, case_runs, courses, exports, files, health, lti, rubrics,
                                submissions, tokens)
 
@@ -30,3 +31,4 @@ api_router.include_router(audit.router)
 api_router.include_router(case_runs.router)
 api_router.include_router(tokens.router)
 api_router.include_router(lti.router)
+api_router.include_router(reviews.router)

@@ -14,6 +14,8 @@ from sqlalchemy.orm import Session
 
 import rubric
 from grader.core.lifecycle import stored_result, touch
+from grader.core.lti_outbox import scores_changed
+from grader.core.overrides import current_overrides, overridden_report
 from grader.core.rubrics import current_grade
 from grader.core.states import SubmissionState
 from grader.models import Grade, Regrade, Submission, utcnow
@@ -40,15 +42,21 @@ def store_grade(*, session: Session, submission: Submission, book, report: rubri
         if current is not None:
             current.superseded_at = now
             session.flush()  # the old grade stops being current before the new one becomes current
+    stored = report.model_dump(mode="json")
+    overrides = current_overrides(session, submission.id) if regrade is None else []
+    if overrides:  # graded again (a re-sent case run): an instructor's scores stay in force (a regrade applies its own)
+        stored = overridden_report(stored, overrides)
     grade = Grade(submission_id=submission.id, rubric_lesson=book.lesson, rubric_version=str(book.version),
-                  rubric_hash=book.content_hash, total=report.total, max_total=report.max_total,
-                  report=report.model_dump(mode="json"), execution_s=execution_s, created_at=now,
+                  rubric_hash=book.content_hash, total=stored["total"], max_total=stored["max_total"],
+                  report=stored, execution_s=execution_s, created_at=now,
                   regrade_id=regrade.id if regrade is not None else None, completed_at=now if complete else None)
     session.add(grade)
     if regrade is None:
         submission.graded_at = now
         touch(submission, SubmissionState.GRADED,
               f"graded under rubric {book.lesson} v{book.version}" + (f"; {detail}" if detail else ""), session=session)
+    if submission.assignment_id is not None:  # its counted score goes to the LMS gradebooks, marked in this transaction
+        scores_changed(session=session, assignment=submission.assignment)
     return grade
 
 

@@ -32,6 +32,7 @@ from grader.services.dashboard import (
     case_run_of,
     resend_case_run,
 )
+from grader.services import tolerance_review
 from grader.services.errors import Conflict, Forbidden, NotFound
 
 router = APIRouter(include_in_schema=False)
@@ -41,6 +42,8 @@ def _page(request: Request, session, user, row: Course, *, message: str | None =
           status_code: int = 200) -> HTMLResponse:
     return TEMPLATES.TemplateResponse(request, "dashboard.html",
                                       {"user": user, "d": course_dashboard(session=session, course=row),
+                                       "pending_signoffs": tolerance_review.pending_signoffs(session=session,
+                                                                                              course=row),
                                        "message": message, "error": error}, status_code=status_code)
 
 

@@ -18,6 +18,8 @@ from grader.pages.errors import not_found as _not_found
 from grader.pages.templates import TEMPLATES
 from grader.services.errors import Conflict, DomainError, Invalid, NotFound
 from grader.services.regrade import commit_regrade, preview_regrade, regrade_records, rubric_versions
+from grader.services.tolerance_review import signoff_states
+from rubric.governance import rubric_changes
 
 router = APIRouter(include_in_schema=False)
 
@@ -30,7 +32,8 @@ def rubrics_page(request: Request, row: StaffCourse, session: SessionDep, user: 
     regrades = regrade_records(session, course=row, lesson=lesson)
     return TEMPLATES.TemplateResponse(request, "rubrics.html", {
         "user": user, "course": row.name, "lesson": lesson, "versions": versions, "regrades": regrades,
-        "current": store.course_version(session, row.id, lesson)})
+        "current": store.course_version(session, row.id, lesson),
+        "signoffs": signoff_states(session, course=row, rows=versions)})
 
 
 def _refused(request: Request, user, course: str, exc: DomainError) -> HTMLResponse:
@@ -49,7 +52,19 @@ def regrade_preview_page(request: Request, row: StaffCourse, session: SessionDep
     except DomainError as exc:
         return _refused(request, user, row.name, exc)
     return TEMPLATES.TemplateResponse(request, "regrade.html", {
-        "user": user, "course": row.name, "error": None, "preview": preview})
+        "user": user, "course": row.name, "error": None, "preview": preview,
+        "from_current": _changes_from_current(session, row, preview)})
+
+
+def _changes_from_current(session, row, preview) -> list[str]:
+    """What the new version changes against the course's current one, for a preview with no graded submission to
+    compare (its per-version changes are then empty, and the instructor still needs to see what they commit)."""
+    if preview.rubric_changes or preview.current_version == preview.new_version:
+        return []
+    current = store.get_version(session, preview.lesson, preview.current_version, course_id=row.id)
+    new = store.get_version(session, preview.lesson, preview.new_version, course_id=row.id)
+    session.rollback()  # recording shipped versions is the only write reading them may cause; a preview keeps none
+    return rubric_changes(current, new)
 
 
 @router.post("/courses/{course}/regrade")

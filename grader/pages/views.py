@@ -9,14 +9,16 @@ import json
 from dataclasses import dataclass, field
 from datetime import datetime
 
+from sqlalchemy import select
 from sqlalchemy.orm import object_session
 
 from grader.core.rubrics import stored_version
 from grader.core.states import CaseRunState, SubmissionState
-from grader.models import CaseRun, Grade, Submission, utcnow
+from grader.models import CaseRun, Grade, Override, ReviewRequest, Submission, utcnow
 from grader.services.exports import evidence_names
+from grader.services.overrides import override_history
+from grader.services.review_requests import state_of
 from grader.services.visibility import GradeView
-from grader.settings import settings
 from rubric.metrics import TUMBLE_EXPLANATION, tumble_angle_deg
 
 # A case still running after this long on a fresh worker is most likely compiling Genesis kernels (~100 s once).
@@ -59,6 +61,14 @@ class ItemRow:
     points: float
     counted: bool
     feedback: str
+    # An instructor's override (grader.services.overrides): {score, comment, by, at}, with the measured score beside it.
+    override: dict | None = None
+    measured_score: float | None = None
+
+    @property
+    def override_at(self) -> datetime | None:
+        """When the override was set (stored in the report as UTC with its offset), naive UTC like every stored time."""
+        return datetime.fromisoformat(self.override["at"]).replace(tzinfo=None) if self.override else None
 
 
 @dataclass
@@ -101,10 +111,22 @@ class ReportView:
     items: list[ItemRow] = field(default_factory=list)
     parts: list[tuple[str, list[ItemRow]]] = field(default_factory=list)
     config_findings: list[str] = field(default_factory=list)
-    figures: list[str] = field(default_factory=list)
     check: CheckView | None = None
     lanes: list[LaneRow] = field(default_factory=list)
     first_run_note: bool = False
+    # Review requests about the items shown to the reader, oldest first, and every override ever set (staff read it).
+    reviews: list[ReviewRequest] = field(default_factory=list)
+    override_history: list[Override] = field(default_factory=list)
+
+    @property
+    def overridden(self) -> list[ItemRow]:
+        return [i for i in self.items if i.override]
+
+    @property
+    def reviewable(self) -> list[ItemRow]:
+        """The items a student may ask about now: shown to them, with no open request."""
+        asked = {r.item_id for r in self.reviews if state_of(r) == "open"}
+        return [i for i in self.items if i.verdict != "pending" and i.id not in asked]
 
     @property
     def tumbled_lanes(self) -> list[LaneRow]:
@@ -120,23 +142,13 @@ class ReportView:
         return tumble_angle_deg(1.0, 1.0)
 
     @property
-    def plots(self) -> list[str]:
-        """Measured-trajectory figures (contact, friction lanes, comparisons), shown open."""
-        return [f for f in self.figures if not f.startswith("frames_")]
-
-    @property
-    def frames(self) -> list[str]:
-        """Initial and final frames, or schematics drawn from measured positions, one per case."""
-        return [f for f in self.figures if f.startswith("frames_")]
-
-    @property
     def config_faults(self) -> list[str]:
         """The findings that broke the one-factor rule (rubric.one_factor's wording for a violation)."""
         return [f for f in self.config_findings if "too many inputs changed" in f]
 
     @property
     def completing(self) -> bool:
-        """Graded, and the figures and lab check of its grade are being drawn (worker.grading.complete_grade)."""
+        """Graded, and the lab check of its grade is being evaluated (worker.grading.complete_grade)."""
         return self.grade is not None and self.grade.completed_at is None
 
     @property
@@ -204,21 +216,22 @@ def report_view(submission: Submission, grade: GradeView | None) -> ReportView:
             for r in submission.case_runs]
     view = ReportView(submission=submission, runs=runs, grade=grade, lanes=_lanes(submission.case_runs))
     view.first_run_note = any(r.status == CaseRunState.RUNNING and (r.elapsed_s or 0) > FIRST_RUN_NOTE_AFTER_S for r in runs)
-    folder = settings.figures_dir(submission.id)
-    view.figures = sorted(p.name for p in folder.glob("*.png")) if folder.is_dir() else []
     if grade is None:
         return view
     report = grade.report
     rubric = _rubric(grade.stored)
     for item in report.get("items", []):
-        counted = item["verdict"] not in ("inconclusive", "pending")
+        override = item.get("override")  # never on a withheld item: grader.services.visibility masked it away
+        counted = override is not None or item["verdict"] not in ("inconclusive", "pending")
         view.items.append(ItemRow(
             id=item["id"], part=item["part"], kind=item["kind"], question=item["question"],
             prediction=_prediction(item["prediction"]), expected=item["expected"], measured=item.get("measured", ""),
             backends=", ".join(f"{case} on {backend}" for case, backend in item.get("backends", {}).items()),
             tolerances=_tolerance_rows(item.get("tolerances", {}), rubric), verdict=item["verdict"],
-            verdict_label=VERDICT_LABEL.get(item["verdict"], item["verdict"]), score=item["score"],
-            points=item["points"], counted=counted, feedback=item["feedback"],
+            # the measured verdict, overridden or not; the verdict cell links an override (_item_review.html)
+            verdict_label=VERDICT_LABEL.get(item["verdict"], item["verdict"]),
+            score=item["score"], points=item["points"], counted=counted, feedback=item["feedback"],
+            override=override, measured_score=item.get("measured_score") if override else None,
         ))
     parts: dict[str, list[ItemRow]] = {}
     for row in view.items:
@@ -226,7 +239,17 @@ def report_view(submission: Submission, grade: GradeView | None) -> ReportView:
     view.parts = list(parts.items())
     view.config_findings = report.get("config_findings", [])
     view.check = _check(report.get("check"))
+    _reviews(view, grade)
     return view
+
+
+def _reviews(view: ReportView, grade: GradeView) -> None:
+    """The requests and overrides beside a shown grade; a request about a withheld item waits until it is shown."""
+    session = object_session(view.submission)
+    requests = session.scalars(select(ReviewRequest).where(ReviewRequest.submission_id == view.submission.id)
+                               .order_by(ReviewRequest.id))
+    view.reviews = [r for r in requests if r.item_id not in grade.hidden]
+    view.override_history = [] if grade.hidden else override_history(session, view.submission.id)
 
 
 def _check(stored: dict | None) -> CheckView | None:

@@ -12,4 +12,7 @@ errors        the domain error tree               sending      what services nee
 sessions      page sessions (sign-in, sign-out)   quotas       per-person limits on costly requests
 sign_in_links students' single-use sign-in links   course_page  a student's course page, as data
 lti           LTI 1.3: registrations, keys, launches, deep links, scores sent to the LMS
+lti_outbox    scores sent to the LMS on their own: marked on change, sent by the reconciler, retried, shown
+overrides     an instructor's score for one item, with its comment, kept beside the measured verdict
+review_requests  a student's request to review one item, and the instructor's answer
 """

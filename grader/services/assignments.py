@@ -1,23 +1,29 @@
 """Assignments: which rubric items one holds, the dates that apply to a student, whether a submission may be taken
-now, how a late attempt's penalty turns its raw score into the counted one, and which items a student sees yet."""
+now, how a late attempt's penalty turns its raw score into the counted one, and which items a student sees yet; and
+the instructor's changes to them (create, update, release, extensions), each recorded with who made it
+(grader.services.course_changes)."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from datetime import datetime, timedelta
+from datetime import UTC, datetime, timedelta
 from functools import cache
 
+from pydantic import BaseModel, ValidationError
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session, defer
 
+from grader.core.lti_outbox import scores_changed
 from grader.core.rubrics import current_grade
 from grader.core.states import AssignmentParts, CountedAttempt, Role, Visibility
-from grader.core.timezones import iso
+from grader.core.timezones import iso, local
 from grader.models import Assignment, Course, Extension, Grade, Submission, User, utcnow
-from grader.schemas import CountedGradePublic
+from grader.schemas import AssignmentCreate, CountedGradePublic, ExtensionCreate
+from grader.services import course_changes
 from grader.services.access import MAX_ID
-from grader.services.errors import Invalid, NotFound, Refused
+from grader.services.course_changes import ChangeKind
+from grader.services.errors import Conflict, Invalid, NotFound, Refused
 from rubric import load_rubric
 
 DAY_S = 86400
@@ -51,8 +57,7 @@ class Dates:
 
 def dates_for(*, session: Session, assignment: Assignment, student: User) -> Dates:
     """The assignment's due date and hard close, or the student's extension when one was granted."""
-    ext = session.scalar(select(Extension).where(Extension.assignment_id == assignment.id,
-                                                 Extension.student_id == student.id))
+    ext = extension_of(session=session, assignment=assignment, student=student)
     if ext is not None:
         return Dates(ext.due_at, ext.hard_close_at, ext)
     return Dates(assignment.due_at, assignment.hard_close_at, None)
@@ -201,47 +206,182 @@ def of_course(*, session: Session, course: Course) -> list[Assignment]:
                                 .order_by(Assignment.due_at, Assignment.id)))
 
 
+def _strangers(lesson: str, part: str, item_visibility: dict | None) -> list[dict[str, str]]:
+    """Each per-item visibility that names no item of the assignment, as a field error."""
+    held = item_ids(lesson, part)
+    return [{"field": f"item_visibility.{item}", "rule": f"not an item of this assignment ({part}: {', '.join(held)})"}
+            for item in item_visibility or {} if item not in held]
+
+
+def _validated(model: type[BaseModel], raw: dict, detail: str) -> dict:
+    """`raw` checked by the API's body model: Invalid naming each field (dotted from the top) with pydantic's
+    message, as grader.api.errors answers a body."""
+    try:
+        return model.model_validate(raw).model_dump()
+    except ValidationError as exc:
+        raise Invalid(detail, [{"field": ".".join(str(p) for p in e["loc"]), "rule": e["msg"]}
+                               for e in exc.errors()]) from None
+
+
+def checked(raw: dict) -> dict:
+    """An assignment's fields checked as the API checks a body (grader.schemas.AssignmentCreate: the same rules, the
+    same messages, each naming its field) and by create's own rule on per-item visibility: every error at once, as
+    Invalid. For callers that do not come through the API's body validation (the set-up pages)."""
+    try:
+        fields = _validated(AssignmentCreate, raw, "invalid assignment")
+    except Invalid as exc:
+        if not {e["field"].partition(".")[0] for e in exc.errors} & {"lesson", "part", "item_visibility"}:
+            exc.errors += _strangers(raw.get("lesson", "L03"), raw.get("part", AssignmentParts.SHEET),
+                                     raw.get("item_visibility"))
+        raise
+    if strangers := _strangers(fields["lesson"], fields["part"], fields["item_visibility"]):
+        raise Invalid("invalid assignment", strangers)
+    return fields
+
+
+def checked_extension(raw: dict) -> dict:
+    """An extension's student and dates checked as the API checks its body (grader.schemas.ExtensionCreate)."""
+    return _validated(ExtensionCreate, raw, "invalid extension")
+
+
 def create(*, session: Session, course: Course, user: User, fields: dict) -> Assignment:
     """Store a new assignment of the course (fields validated by grader.schemas.AssignmentCreate); Invalid naming
-    each per-item visibility that names no item of the assignment. Commits."""
-    held = item_ids(fields["lesson"], fields["part"])
-    strangers = [{"field": f"item_visibility.{item}",
-                  "rule": f"not an item of this assignment ({fields['part']}: {', '.join(held)})"}
-                 for item in fields.get("item_visibility") or {} if item not in held]
-    if strangers:
+    each per-item visibility that names no item of the assignment. Recorded with who created it. Commits."""
+    if strangers := _strangers(fields["lesson"], fields["part"], fields.get("item_visibility")):
         raise Invalid("invalid assignment", strangers)
     assignment = Assignment(course_id=course.id, created_by_id=user.id, **fields)
     session.add(assignment)
+    session.flush()
+    course_changes.record(session=session, course=course, by=user, kind=ChangeKind.ASSIGNMENT_CREATED,
+                          assignment=assignment, summary=f"created assignment {assignment.id} {assignment.title!r}",
+                          detail={k: _plain(v) for k, v in fields.items()})
     session.commit()
     return assignment
 
 
-def release(*, session: Session, assignment: Assignment) -> Assignment:
+def submission_count(*, session: Session, assignment: Assignment) -> int:
+    return session.scalar(select(func.count()).select_from(Submission).where(
+        Submission.assignment_id == assignment.id))
+
+
+def update(*, session: Session, assignment: Assignment, by: User, fields: dict) -> Assignment:
+    """Change an assignment's settings to `fields` (every field create takes, validated as for create): all or
+    nothing, recorded with the values before and after. Once students have submitted, its lesson and part are
+    fixed (Conflict naming the field): each submission's sheet answers exactly the items they select. Every other
+    setting may change: late policy, counted attempt and visibility apply to the attempts already graded too, while
+    each attempt keeps the lateness it was admitted with. Commits (nothing when nothing changed)."""
+    if strangers := _strangers(fields["lesson"], fields["part"], fields.get("item_visibility")):
+        raise Invalid("invalid assignment", strangers)
+    changed = {k: [getattr(assignment, k), v] for k, v in fields.items() if getattr(assignment, k) != v}
+    fixed = [k for k in ("lesson", "part") if k in changed]
+    if fixed and (used := submission_count(session=session, assignment=assignment)):
+        raise Conflict("assignment has submissions", [{"field": k, "rule": (
+            f"fixed once students have submitted: {used} submission{'s' if used != 1 else ''} answer the items of "
+            f"{k} {getattr(assignment, k)!r}")} for k in fixed])
+    if not changed:
+        return assignment
+    for key, (_, new) in changed.items():
+        setattr(assignment, key, new)
+    tz = assignment.course.timezone
+    summary = f"edited assignment {assignment.id} {assignment.title!r}: " + "; ".join(
+        f"{LABELS[k]} {_shown(old, tz)} → {_shown(new, tz)}" for k, (old, new) in changed.items())
+    course_changes.record(session=session, course=assignment.course, by=by, kind=ChangeKind.ASSIGNMENT_EDITED,
+                          assignment=assignment, summary=summary,
+                          detail={k: [_plain(old), _plain(new)] for k, (old, new) in changed.items()})
+    scores_changed(session=session, assignment=assignment)  # a late policy or visibility changes counted scores
+    session.commit()
+    return assignment
+
+
+# How a change record names each setting (grader.cli.assignment's options, in words).
+LABELS = {"title": "title", "lesson": "lesson", "part": "part", "open_at": "opens", "due_at": "due",
+          "hard_close_at": "hard close", "late_penalty_per_day": "late penalty per day",
+          "late_penalty_cap": "late penalty cap", "max_attempts": "attempts", "max_per_hour": "submissions per hour",
+          "counted_attempt": "counted attempt", "visibility": "scores shown", "item_visibility": "items shown"}
+
+
+def _shown(value, tz: str) -> str:
+    if value is None:
+        return "none"
+    if isinstance(value, datetime):
+        return local(value, tz)
+    if isinstance(value, dict):
+        return ", ".join(f"{k} {v}" for k, v in value.items()) or "none"
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _plain(value):
+    """A value as the change record's JSON keeps it: times as ISO 8601 UTC."""
+    return value.replace(tzinfo=UTC).isoformat() if isinstance(value, datetime) else value
+
+
+def release(*, session: Session, assignment: Assignment, by: User) -> Assignment:
     """Show the assignment's withheld (on_release) scores and feedback to its students; nothing is regraded. Releasing
-    again keeps the first release time. Commits."""
+    again keeps the first release time (and records nothing). Commits."""
     if assignment.released_at is None:
         assignment.released_at = utcnow()
+        scores_changed(session=session, assignment=assignment)  # the withheld scores may now go to the LMS
+        course_changes.record(session=session, course=assignment.course, by=by, kind=ChangeKind.RELEASED,
+                              assignment=assignment,
+                              summary=f"released assignment {assignment.id} {assignment.title!r}: withheld "
+                                      "scores and feedback shown to its students")
         session.commit()
     return assignment
+
+
+def _student(*, session: Session, assignment: Assignment, student_name: str) -> User:
+    student = session.scalar(select(User).where(User.course_id == assignment.course_id, User.name == student_name,
+                                                User.role == Role.STUDENT))
+    if student is None:
+        raise Invalid("unknown student", [{"field": "student", "rule": f"no student {student_name!r} in this course"}])
+    return student
+
+
+def extension_of(*, session: Session, assignment: Assignment, student: User) -> Extension | None:
+    return session.scalar(select(Extension).where(Extension.assignment_id == assignment.id,
+                                                  Extension.student_id == student.id))
 
 
 def grant_extension(*, session: Session, assignment: Assignment, student_name: str, due_at: datetime,
                     hard_close_at: datetime, user: User) -> Extension:
     """Give one student their own due date and hard close (replaces an earlier one); Invalid for an unknown student.
-    Commits."""
-    student = session.scalar(select(User).where(User.course_id == assignment.course_id, User.name == student_name,
-                                                User.role == Role.STUDENT))
-    if student is None:
-        raise Invalid("unknown student", [{"field": "student", "rule": f"no student {student_name!r} in this course"}])
-    ext = session.scalar(select(Extension).where(Extension.assignment_id == assignment.id,
-                                                 Extension.student_id == student.id))
+    Recorded with who granted it. Commits."""
+    student = _student(session=session, assignment=assignment, student_name=student_name)
+    ext = extension_of(session=session, assignment=assignment, student=student)
+    tz = assignment.course.timezone
+    replaced = f" (was due {local(ext.due_at, tz)}, closing {local(ext.hard_close_at, tz)})" if ext else ""
     if ext is None:
         ext = Extension(assignment_id=assignment.id, student_id=student.id)
         session.add(ext)
     ext.due_at, ext.hard_close_at, ext.granted_by_id = due_at, hard_close_at, user.id
     ext.granted_at = utcnow()
+    course_changes.record(
+        session=session, course=assignment.course, by=user, kind=ChangeKind.EXTENSION_GRANTED, assignment=assignment,
+        summary=f"extension for {student.name} on assignment {assignment.id}: due {local(due_at, tz)}, closes "
+                f"{local(hard_close_at, tz)}{replaced}",
+        detail={"student": student.name, "due_at": _plain(due_at), "hard_close_at": _plain(hard_close_at)})
+    scores_changed(session=session, assignment=assignment)  # items shown after_due follow the student's due date
     session.commit()
     return ext
+
+
+def revoke_extension(*, session: Session, assignment: Assignment, student_name: str, by: User) -> None:
+    """Take a student's extension away: the assignment's own dates apply to them again (their attempts keep the
+    lateness they were admitted with). Invalid naming `student` when they have none. Recorded. Commits."""
+    student = _student(session=session, assignment=assignment, student_name=student_name)
+    ext = extension_of(session=session, assignment=assignment, student=student)
+    if ext is None:
+        raise Invalid("no extension", [{"field": "student", "rule": (
+            f"{student.name!r} has no extension of assignment {assignment.id}")}])
+    tz = assignment.course.timezone
+    course_changes.record(
+        session=session, course=assignment.course, by=by, kind=ChangeKind.EXTENSION_REVOKED, assignment=assignment,
+        summary=f"extension of {student.name} on assignment {assignment.id} revoked (was due "
+                f"{local(ext.due_at, tz)}, closing {local(ext.hard_close_at, tz)}, granted by {ext.granted_by.name})",
+        detail={"student": student.name, "due_at": _plain(ext.due_at), "hard_close_at": _plain(ext.hard_close_at)})
+    session.delete(ext)
+    scores_changed(session=session, assignment=assignment)  # items shown after_due follow the student's due date
+    session.commit()
 
 
 # --- the instructor's view of an assignment -----------------------------------------------------------------------

@@ -4,7 +4,8 @@ Counts submissions by state, lists case runs that failed or are stuck with their
 may re-send them), takes each student's latest graded attempt for the item analysis (rubric.analysis), the roster
 and the predictions against what was measured (H1, H4), and spreads the course's key measurements by the backend
 that produced them, and gives each assignment's counted grades. The charts (grader.pages.dashboard) are drawn
-from this same data, never from a second query.
+from this same data, never from a second query. At its top, what changed that a person must look at: the open review
+requests and the newest overrides (grader.services.review_requests, grader.services.overrides).
 """
 
 from __future__ import annotations
@@ -21,13 +22,16 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session, selectinload
 
 from grader.core import lifecycle
-from grader.core.rubrics import current_grade
 from grader.core.states import CaseRunState, Role, SubmissionState
 from grader.models import Assignment, CaseRun, Course, Grade, Submission, User, utcnow
 from grader.schemas import CountedGradePublic, UtcDateTime
 from grader.services.access import MAX_ID, require_instructor
 from grader.services.assignments import counted_grades, counted_public
 from grader.services.errors import Conflict, NotFound
+from grader.services import overrides as override_store
+from grader.services import review_requests
+from grader.services.overrides import OverridePublic
+from grader.services.review_requests import ReviewRequestPublic
 from grader.services.sending import Sender
 from rubric import class_analysis
 from rubric import sheet as sheet_models
@@ -133,6 +137,8 @@ class Dashboard(BaseModel):
     predictions: list[PredictionPlot]
     backends: BackendSpread
     assignments: list[AssignmentGrades] = []
+    open_reviews: list[ReviewRequestPublic] = []  # oldest first: the queue at /courses/COURSE/reviews
+    recent_overrides: list[OverridePublic] = []  # newest first, the ones in force
 
 
 # --- grades: every Grade query of this module goes through current_grades / current_grade ------------------------
@@ -157,8 +163,9 @@ def latest_graded(session: Session, course: Course) -> list[tuple[Submission, Gr
 
 # --- problems and the resend action --------------------------------------------------------------------------------
 
-def _not_resendable(run: CaseRun, submission: Submission, has_grade: bool, now: datetime) -> str | None:
-    """Why an instructor may not re-send this run now, or None when they may."""
+def _not_resendable(run: CaseRun, submission: Submission, now: datetime) -> str | None:
+    """Why an instructor may not re-send this run now, or None when they may. (A submission with an instructor's
+    scores in force may be: grading it again keeps them, grader.core.grading.store_grade.)"""
     if run.status != CaseRunState.FAILED and lifecycle.stuck_reason(run, now) is None:
         return f"case run {run.id} ({run.name}) is {run.status}, neither failed nor stuck"
     if submission.status == SubmissionState.GRADING:
@@ -187,7 +194,7 @@ def resend_case_run(*, session: Session, case_run_id: int, user: User, sender: S
     submission = run.submission
     session.refresh(submission)
     now = utcnow()
-    why_not = _not_resendable(run, submission, current_grade(session, submission.id) is not None, now)
+    why_not = _not_resendable(run, submission, now)
     if why_not:
         session.rollback()
         raise Conflict(why_not)
@@ -346,7 +353,7 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
         for run in s.case_runs:
             reason = run.error if run.status == CaseRunState.FAILED else lifecycle.stuck_reason(run, now)
             if reason:
-                why_not = _not_resendable(run, s, s.id in grades, now)
+                why_not = _not_resendable(run, s, now)
                 problems.append(RunProblem(case_run_id=run.id, submission_id=s.id, student=s.student.name,
                                            case=run.name, status=run.status, reason=reason,
                                            since=run.finished_at or run.started_at or run.queued_at,
@@ -367,6 +374,10 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
         predictions=predictions(course, graded),
         backends=backend_spread(session, course),
         assignments=assignment_grades(session, course),
+        open_reviews=[review_requests.public(r) for r in
+                      review_requests.course_requests(session=session, course_id=course.id, state="open")],
+        recent_overrides=[override_store.public(session, o)
+                          for o in override_store.recent_overrides(session, course_id=course.id)],
     )
 
 

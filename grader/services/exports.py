@@ -1,8 +1,14 @@
 """Grade exports for instructors: a course's grades as CSV, an assignment's counted grades as CSV, one submission as
 Gradescope results.json, and the evidence files of a case run (from the database). The API and the pages serve the
-same bytes."""
+same bytes.
+
+Scores are the current grade's, so an instructor's override (grader.services.overrides) is in them; the course CSV
+adds an `overrides` column and Gradescope each overridden test's output the comment, beside the measured verdict."""
 
 from __future__ import annotations
+
+import csv
+import io
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -39,7 +45,32 @@ def course_grades_csv(*, session: Session, course: Course, latest: bool = False)
         graded = sorted({s.student_id: (s, g) for s, g in graded}.values(), key=lambda sg: sg[0].student.name)
     text = grades_csv([(s.student.name, _report(g)) for s, g in graded],
                       submissions=[(s.id, f"{s.created_at.isoformat()}+00:00") for s, _ in graded])
-    return f"{course.name}-{'latest' if latest else 'all'}-grades.csv", text
+    return f"{course.name}-{'latest' if latest else 'all'}-grades.csv", _with_overrides(text, [g for _, g in graded])
+
+
+def _overridden(grade: Grade) -> list[dict]:
+    return [i for i in grade.report.get("items", []) if "override" in i]
+
+
+def override_note(item: dict) -> str:
+    """One overridden item in words: its score, the comment, who, and what was measured."""
+    o = item["override"]
+    return (f"{item['id']}: {o['score']:g} of {item['points']:g} set by {o['by']}: {o['comment']} "
+            f"(measured: {item['verdict'].replace('_', ' ')}, {item['measured_score']:g})")
+
+
+def _with_overrides(text: str, grades: list[Grade]) -> str:
+    """The rubric's CSV with a last column `overrides` (each overridden item in words, "; " between), and an overridden
+    item's cell holding its score even where the measurement alone was inconclusive (left empty there)."""
+    rows = list(csv.reader(io.StringIO(text)))
+    header = rows[0] + ["overrides"]
+    for row, grade in zip(rows[1:], grades, strict=True):
+        items = _overridden(grade)
+        for item in items:
+            if item["id"] in header:
+                row[header.index(item["id"])] = f"{item['score']:g}"
+        row.append("; ".join(override_note(i) for i in items))
+    return csv_text([header, *rows[1:]])
 
 
 def counted_grades_csv(*, session: Session, assignment: Assignment) -> tuple[str, str]:
@@ -63,7 +94,13 @@ def gradescope(*, session: Session, submission: Submission) -> dict:
     report = _report(grade)
     shown = ({i.id: assignments.GRADESCOPE_VISIBILITY[visibility_of(submission.assignment, i.id)]
               for i in report.items} if submission.assignment is not None else {})
-    return gradescope_results(report, grade.execution_s, shown)
+    results = gradescope_results(report, grade.execution_s, shown)
+    overridden = {i["id"]: i for i in _overridden(grade)}
+    for test in results["tests"]:
+        item = overridden.get(test["name"].split(":", 1)[0])
+        if item is not None:
+            test["output"] = f"Score set by an instructor. {override_note(item)}\n{test['output']}"
+    return results
 
 
 def evidence_names(run: CaseRun) -> list[str]:

@@ -6,6 +6,9 @@ new version needs a case it never measured is left on its grade with that reason
 current grade with a new one under the new version and keeps the old (grader.core.rubrics.grade_history), and the
 course grades its new submissions under that version from then on. Both are recorded with who and when.
 
+An instructor's override (grader.services.overrides) outlives a regrade: the new grade applies the submission's current
+overrides to what the new version measures, and the preview says so per student and item (`overrides`).
+
 A course regrades only under the versions it may read (shipped, or its own published ones), and a commit names the
 content hash its preview showed: content other than what the instructor previewed is never committed.
 """
@@ -28,6 +31,7 @@ from grader.core.rubrics import course_version, course_versions, get_version, st
 from grader.models import Course, Grade, Regrade, RubricVersion, Submission, User, utcnow
 from grader.schemas import UtcDateTime
 from grader.services.errors import Conflict, Invalid, NotFound
+from grader.services.overrides import current_overrides, overridden_report
 from grader.settings import settings
 from rubric import ArchivedRubric
 from rubric.governance import report_changes, rubric_changes
@@ -59,6 +63,7 @@ class RegradeEntry(BaseModel):
     max_total: float | None
     changed_items: list[ItemDiff]
     skipped: str | None = None  # why this submission stays on its old grade
+    overrides: list[str] = []  # each override the new grade keeps (or drops), with what the new version measures
 
     @property
     def delta(self) -> float | None:
@@ -125,8 +130,28 @@ def _why(item_id: str, old_rubric, new_rubric, new_item) -> str:
     return "; ".join(reasons)
 
 
-def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric):
-    """(entry, new GradeReport or None) for one submission, from its stored measurements only."""
+def _override_notes(report: dict, overrides) -> list[str]:
+    """Per override, what the regrade does with it: kept beside the new version's measured verdict and score, capped
+    at the item's new points, or dropped with an item the new version no longer has."""
+    items = {i["id"]: i for i in report["items"]}
+    notes = []
+    for o in overrides:
+        item = items.get(o.item_id)
+        if item is None:
+            notes.append(f"{o.item_id}: override {o.score:g} by {o.by.name} dropped: the new version has no such item")
+            continue
+        measured = f"the new version measures {item['verdict'].replace('_', ' ')}, {item['score']:g}"
+        if o.score > item["points"]:
+            notes.append(f"{o.item_id}: override {o.score:g} by {o.by.name} kept, capped at the item's new "
+                         f"{item['points']:g} points ({measured})")
+        else:
+            notes.append(f"{o.item_id}: override {o.score:g} of {item['points']:g} by {o.by.name} kept ({measured})")
+    return notes
+
+
+def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric, overrides=()):
+    """(entry, new report as stored (a dict, overrides applied) or None) for one submission, from its stored
+    measurements only."""
 
     entry = dict(submission_id=submission.id, student=submission.student.name, old_version=grade.rubric_version,
                  new_version=new_rubric.version, old_total=grade.total, new_total=None, max_total=None,
@@ -145,21 +170,21 @@ def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric):
                                                  f"submission: {', '.join(missing)}"), None
         new = grading.score(submission, new_rubric)
         results = {run.name: stored_result(run) for run in submission.case_runs}
-        folder = settings.figures_dir(submission.id)
-        figures = sorted(folder.glob("*.png")) if folder.is_dir() else []
         reused = {run.name: run.reused_from_id for run in submission.case_runs if run.reused_from_id}
-        check, _ = lab_check(results, figures=figures, rubric=new_rubric, reused=reused,
+        check, _ = lab_check(results, figures=None, rubric=new_rubric, reused=reused,
                              artifacts_dir=settings.artifacts_dir)
         new = new.model_copy(update={"check": check})
     except Exception as exc:  # one submission that cannot be regraded must not hide the others
         return RegradeEntry(**entry, skipped=f"regrading failed: {type(exc).__name__}: {exc}"), None
+    measured = new.model_dump(mode="json")
+    stored = overridden_report(measured, overrides) if overrides else measured
     old = rubric.GradeReport.model_validate(grade.report)
-    row = report_changes({"s": old}, {"s": new}).rows[0]
+    row = report_changes({"s": old}, {"s": rubric.GradeReport.model_validate(stored)}).rows[0]
     new_items = {i.id: i for i in new.items}
-    entry.update(new_total=new.total, max_total=new.max_total, changed_items=[
+    entry.update(new_total=stored["total"], max_total=stored["max_total"], changed_items=[
         ItemDiff(**change.model_dump(), why=_why(change.id, old_rubric, new_rubric, new_items.get(change.id)))
-        for change in row.changed_items])
-    return RegradeEntry(**entry), new
+        for change in row.changed_items], overrides=_override_notes(measured, overrides))
+    return RegradeEntry(**entry), stored
 
 
 def _check(**fields: str) -> None:
@@ -191,7 +216,8 @@ def _compute(session: Session, course: Course, lesson: str, version: str):
         ensure_gradable(new_rubric)
     except ArchivedRubric as exc:
         raise Conflict(str(exc)) from exc
-    results = [_regrade_one(s, g, old_rubrics[g.rubric_hash], new_rubric) for s, g in graded]
+    results = [_regrade_one(s, g, old_rubrics[g.rubric_hash], new_rubric, current_overrides(session, s.id))
+               for s, g in graded]
     preview = RegradePreview(
         course=course.name, lesson=lesson, current_version=current, new_version=new_rubric.version,
         content_hash=new_rubric.content_hash,
@@ -234,9 +260,12 @@ def commit_regrade(session: Session, *, course: Course, lesson: str, version: st
         if report is None:
             continue
         # its lab check was evaluated again on the figures already drawn: the new grade is complete
-        grading.store_grade(session=session, submission=submissions[entry.submission_id], book=new_rubric,
-                            report=report, execution_s=preview.elapsed_s / max(len(results), 1), complete=True,
-                            regrade=regrade, now=now)
+        stored = grading.store_grade(session=session, submission=submissions[entry.submission_id], book=new_rubric,
+                                     report=rubric.GradeReport.model_validate(report),
+                                     execution_s=preview.elapsed_s / max(len(results), 1), complete=True,
+                                     regrade=regrade, now=now)
+        # the overrides it keeps (the rubric's report model has no field for them): stored as the preview showed
+        stored.report, stored.total, stored.max_total = report, report["total"], report["max_total"]
         regrade.regraded += 1
     try:
         session.commit()

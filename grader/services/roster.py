@@ -1,5 +1,6 @@
 """Roster import: a course's students from CSV (student id, name, email), each new one given a token once, and on
-request each student in the file a fresh sign-in link (grader.services.sign_in_links)."""
+request each student in the file a fresh sign-in link (grader.services.sign_in_links); each import recorded with who
+made it (grader.services.course_changes)."""
 
 from __future__ import annotations
 
@@ -12,8 +13,10 @@ from sqlalchemy.orm import Session
 
 from grader.core.states import Role
 from grader.models import Course, User
-from grader.services import accounts, sign_in_links
+from grader.services import accounts, course_changes, sign_in_links
+from grader.services.course_changes import ChangeKind
 from grader.services.errors import Invalid
+from rubric.exports import csv_text
 
 COLUMNS = ["student_id", "name", "email"]
 STUDENT_ID = re.compile(r"^[A-Za-z0-9_.@\-]{1,64}$")
@@ -76,14 +79,47 @@ def role_conflicts(*, session: Session, course: Course, rows: list[tuple[str, st
             for sid, _, _ in rows if sid in staff]
 
 
-def import_csv(*, session: Session, course: Course, text: str, links: bool = False) -> list[dict]:
+def import_csv(*, session: Session, course: Course, text: str, by: User, links: bool = False) -> list[dict]:
     """Import a roster CSV (student_id,name,email) into the course, all rows or none (Invalid naming each bad row's
     field and rule); new students get a token (and with `links` every row a sign-in link), shown only in the
-    answer. Commits."""
+    answer. Recorded with who imported it (names only, never a token or link). Commits."""
     rows, problems = parse_roster(text)
     problems = problems or role_conflicts(session=session, course=course, rows=rows)
     if problems:
         raise Invalid("invalid roster", problems)
     entries = import_roster(session=session, course=course, rows=rows, links=links)
+    _record(session=session, course=course, by=by, entries=entries, links=links)
     session.commit()
     return entries
+
+
+def _record(*, session: Session, course: Course, by: User, entries: list[dict], links: bool) -> None:
+    created = [e["student"] for e in entries if e["created"]]
+    updated = [e["student"] for e in entries if not e["created"]]
+    summary = f"roster imported: {len(created)} new{_names(created)}, {len(updated)} updated{_names(updated)}"
+    if links:
+        summary += f"; new sign-in links for all {len(entries)} (earlier links revoked)"
+    course_changes.record(session=session, course=course, by=by, kind=ChangeKind.ROSTER_IMPORTED, summary=summary,
+                          detail={"created": created, "updated": updated, "links": links})
+
+
+def _names(names: list[str], shown: int = 8) -> str:
+    if not names:
+        return ""
+    more = f", and {len(names) - shown} more" if len(names) > shown else ""
+    return f" ({', '.join(names[:shown])}{more})"
+
+
+def students(*, session: Session, course: Course) -> list[User]:
+    """The course's students, by name (student id)."""
+    return list(session.scalars(select(User).where(User.course_id == course.id, User.role == Role.STUDENT)
+                                .order_by(User.name)))
+
+
+def issued_csv(rows: list[dict]) -> str:
+    """What was issued, as the CSV an instructor keeps: student_id, token (new students only) and sign-in link (when
+    one was issued); the only copy, since the service keeps only their hashes. Through the one safe CSV writer (a
+    student id or name a spreadsheet would evaluate is neutralised; tokens and links never start like a formula)."""
+    return csv_text([("student_id", "name", "email", "token", "sign_in_link")] + [
+        (row["student"], row.get("name") or "", row.get("email") or "", row.get("token") or "",
+         row.get("sign_in_link") or "") for row in rows])

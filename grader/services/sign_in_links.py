@@ -15,7 +15,8 @@ from grader.core.security import hash_token
 from grader.core.states import Role
 from grader.core.timezones import local
 from grader.models import Course, SignInLink, User, utcnow
-from grader.services import sessions
+from grader.services import course_changes, sessions
+from grader.services.course_changes import ChangeKind
 from grader.services.errors import Invalid
 from grader.settings import settings
 
@@ -45,13 +46,16 @@ def revoke_links(*, session: Session, user_id: int) -> int:
                            .values(revoked_at=utcnow())).rowcount
 
 
-def issue_for(*, session: Session, course: Course, student_name: str) -> tuple[str, SignInLink]:
-    """Re-issue one student's link (the earlier one stops working); Invalid for anyone not a student of the course.
-    Commits."""
+def issue_for(*, session: Session, course: Course, student_name: str, by: User) -> tuple[str, SignInLink]:
+    """Re-issue one student's link (the earlier one stops working), recorded with who issued it; Invalid for anyone
+    not a student of the course. Commits."""
     student = session.scalar(select(User).where(User.course_id == course.id, User.name == student_name))
     if student is None:
         raise Invalid("unknown student", [{"field": "student", "rule": f"no student {student_name!r} in this course"}])
     secret, row = issue(session=session, user=student)
+    course_changes.record(session=session, course=course, by=by, kind=ChangeKind.SIGN_IN_LINK_ISSUED,
+                          summary=f"new sign-in link for {student.name} (the earlier one revoked)",
+                          detail={"student": student.name})
     session.commit()
     return secret, row
 

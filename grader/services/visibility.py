@@ -7,6 +7,10 @@ assignment of its course for the lesson still withholds from that student, open 
 without `assignment_id` must not tell what the assignment keeps back. A withheld item keeps its question, points and
 the student's own prediction; its score, verdict, evidence and feedback are not shown, the totals count the shown
 items only, and the lab check waits until nothing is withheld.
+
+An instructor's override (grader.services.overrides) is part of the stored grade's item (`override`, with the
+measured score and verdict beside it), so it is shown exactly when its item is: a withheld item is masked down to its
+question, points and prediction, and keeps neither the override's score nor its comment.
 """
 
 from __future__ import annotations
@@ -86,7 +90,9 @@ def shown_report(report: dict, hidden: dict[str, str]) -> dict:
     max_total = shown_max + pending_points
     note = (f"{pending_points:g} of {max_total:g} points pending ({', '.join(names)}): "
             + "; ".join(sorted(set(hidden.values()))))
-    return {**report, "items": items, "total": round(total, 6), "max_total": max_total, "pending": note,
+    # which item the grade's last override changed would tell a withheld one was overridden: left out while any is
+    kept = {k: v for k, v in report.items() if k != "made_by_override"}
+    return {**kept, "items": items, "total": round(total, 6), "max_total": max_total, "pending": note,
             "check": None}
 
 

@@ -63,10 +63,10 @@ def get_assignment(assignment: ReadableAssignment):
 
 
 @router.post("/assignments/{assignment_id}/release", response_model=AssignmentPublic, responses=errors(403))
-def release(assignment: InstructorsAssignment, session: SessionDep):
+def release(assignment: InstructorsAssignment, session: SessionDep, user: CurrentUser):
     """Show the assignment's scores and feedback to its students (visibility on_release; an instructor of the
     course). Releasing again keeps the first release time."""
-    return assignment_public(logic.release(session=session, assignment=assignment))
+    return assignment_public(logic.release(session=session, assignment=assignment, by=user))
 
 
 @router.post("/assignments/{assignment_id}/extensions", status_code=status.HTTP_201_CREATED,

@@ -28,11 +28,11 @@ def get_course(course: MemberCourse):
 
 
 @router.patch("/{course}", response_model=CoursePublic, responses=errors(413))
-def update_course(course: InstructorCourse, body: CourseUpdate, session: SessionDep):
+def update_course(course: InstructorCourse, body: CourseUpdate, session: SessionDep, user: CurrentUser):
     """Change the course's settings (instructors): its time zone, an IANA name (times stay stored in UTC; pages and
     refusal messages show them in this zone), and whether students may submit outside assignments. An unknown zone
     is 422 naming the field, nothing changed."""
-    return course_public(courses.update_settings(session=session, course=course, timezone=body.timezone,
+    return course_public(courses.update_settings(session=session, course=course, by=user, timezone=body.timezone,
                                                  free_submissions=body.free_submissions))
 
 
@@ -56,19 +56,21 @@ def _link(request: Request, secret: str) -> str:
 
 
 @router.post("/{course}/roster", response_model=list[RosterEntry], responses=errors(413))
-def import_roster(course: InstructorCourse, body: RosterImport, session: SessionDep, request: Request):
+def import_roster(course: InstructorCourse, body: RosterImport, session: SessionDep, request: Request,
+                  user: CurrentUser):
     """Import students from CSV (student_id,name,email): new ones get a token, shown only in this answer; a student
     already there keeps their token and gets the file's name and email. With `links`, every student of the file gets
     a new single-use sign-in link (their earlier one stops working). All rows or none (instructors)."""
-    entries = roster.import_csv(session=session, course=course, text=body.csv, links=body.links)
+    entries = roster.import_csv(session=session, course=course, text=body.csv, links=body.links, by=user)
     return [RosterEntry(**{k: v for k, v in e.items() if k not in ("link_secret", "link_expires_at")},
                         sign_in_link=_link(request, e["link_secret"]) if e["link_secret"] else None,
                         sign_in_link_expires_at=e["link_expires_at"]) for e in entries]
 
 
 @router.post("/{course}/students/{student}/sign-in-link", response_model=SignInLinkPublic)
-def reissue_sign_in_link(course: InstructorCourse, student: Name, session: SessionDep, request: Request):
+def reissue_sign_in_link(course: InstructorCourse, student: Name, session: SessionDep, request: Request,
+                         user: CurrentUser):
     """Issue one student of the course a new sign-in link, shown only in this answer; their earlier link stops
     working (instructors). 422 naming `student` for anyone not a student of the course."""
-    secret, row = sign_in_links.issue_for(session=session, course=course, student_name=student)
+    secret, row = sign_in_links.issue_for(session=session, course=course, student_name=student, by=user)
     return SignInLinkPublic(student=row.user.name, sign_in_link=_link(request, secret), expires_at=row.expires_at)
