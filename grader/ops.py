@@ -12,7 +12,7 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from grader import dispatch
-from grader.models import CaseRun, Grade, Submission, utcnow
+from grader.models import CaseRun, Grade, LtiOutbox, Submission, utcnow
 from grader.core import lifecycle
 from grader.core.states import CaseRunState
 
@@ -27,6 +27,7 @@ class ServiceStatus(BaseModel):
     failures_by_reason: dict[str, int]
     stuck_case_runs: int
     grades_drawing: int = 0  # current grades stored whose figures and lab check are not yet (worker.grading)
+    lti_failing: int = 0  # assignments whose scores the LMS gradebook refused last (grader.services.lti_outbox)
     durations_s: list[float]  # wall time of every case measured (not reused), for the histogram
     broker_error: str | None = None
 
@@ -65,6 +66,7 @@ def service_status(session: Session, *, timeout_s: float = 1.0) -> ServiceStatus
         lifecycle.lease_expired(now) | lifecycle.queue_lease_expired(now)))
     drawing = session.scalar(select(func.count()).select_from(Grade).where(
         Grade.superseded_at.is_(None), Grade.completed_at.is_(None)))
+    lti_failing = session.scalar(select(func.count()).select_from(LtiOutbox).where(LtiOutbox.last_error.is_not(None)))
     durations = session.scalars(select(CaseRun.wall_s).where(
         CaseRun.status == CaseRunState.DONE, CaseRun.reused_from_id.is_(None), CaseRun.wall_s.is_not(None))).all()
     return ServiceStatus(
@@ -72,7 +74,8 @@ def service_status(session: Session, *, timeout_s: float = 1.0) -> ServiceStatus
         submissions_by_state=dict(session.execute(
             select(Submission.status, func.count()).group_by(Submission.status)).all()),
         case_runs_by_state=by_state, failures_by_reason=dict(Counter(failure_reason(r) for r in failed)),
-        stuck_case_runs=stuck or 0, grades_drawing=drawing or 0, durations_s=[float(d) for d in durations])
+        stuck_case_runs=stuck or 0, grades_drawing=drawing or 0, durations_s=[float(d) for d in durations],
+        lti_failing=lti_failing or 0)
 
 
 class StatusCollector:
@@ -119,6 +122,9 @@ class StatusCollector:
                                                              "drawn (the score is final)")
         drawing.add_metric([], status.grades_drawing)
         yield drawing
+        lti = GaugeMetricFamily("grader_lti_sends_failing", "Assignments whose last send to an LMS gradebook failed")
+        lti.add_metric([], status.lti_failing)
+        yield lti
         buckets = [(str(b), sum(1 for d in status.durations_s if d <= b)) for b in DURATION_BUCKETS_S]
         buckets.append(("+Inf", len(status.durations_s)))
         yield HistogramMetricFamily("grader_case_run_duration_seconds", "Wall time of measured (not reused) case runs",

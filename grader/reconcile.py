@@ -8,8 +8,10 @@
 - where liveness is not knowable (the embedded broker, or no broker answer) the leases decide:
   running past its lease (worker crash, machine loss), or queued longer than queue_lease_s;
 - grading longer than the lease (grade task lost): the grade task is re-sent (grading is exactly-once anyway);
-- graded, but its figures and lab check still missing a lease after the grade task was sent (the worker died while
-  drawing them): the grade task is re-sent, and completes the stored grade without grading again.
+- graded, but its lab check still missing a lease after the grade task was sent (the worker died while
+  drawing them): the grade task is re-sent, and completes the stored grade without grading again;
+- counted scores marked for the LMS gradebooks (grader.services.lti_outbox) are sent, once the marking commits or the
+  backoff after a failed send is over, and withheld ones once their due date passes.
 A new delivery number makes every older message for that case run stale, so a late redelivery never runs twice.
 A rocm/cuda case run with no worker of its kind is simply re-sent to the same queue: never to another backend.
 """
@@ -24,6 +26,7 @@ from sqlalchemy.orm import Session
 
 from grader.core import lifecycle
 from grader.models import CaseRun, Event, Grade, Submission, utcnow
+from grader.services import lti_outbox
 from grader.settings import settings
 from grader.core.states import CaseRunState, SubmissionState
 
@@ -42,6 +45,7 @@ class Resend:
     case_runs: list[tuple[int, int, str]] = field(default_factory=list)  # (id, delivery, backend)
     were_running: set[int] = field(default_factory=set)  # ids among case_runs whose worker died: they go first
     gradings: list[int] = field(default_factory=list)
+    scores: list[lti_outbox.OutboxPass] = field(default_factory=list)  # sent to the LMS gradebooks in this pass
 
 
 def _host(worker_name: str) -> str:
@@ -112,7 +116,9 @@ def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=
     for submission in session.scalars(incomplete).all():
         submission.grading_at = utcnow()
         session.add(Event(submission_id=submission.id, state="figures",
-                          detail="grade task re-sent: the grade is stored, its figures and lab check are not"))
+                          detail="grade task re-sent: the grade is stored, its lab check is not"))
         resend.gradings.append(submission.id)
     session.commit()
+    # After the commit: what is re-sent above is marked before any LMS is waited on.
+    resend.scores = lti_outbox.send_due(session=session, now=now)
     return resend

@@ -28,6 +28,7 @@ from pylti1p3.tool_config import ToolConfAbstract
 from sqlalchemy import delete, select, update
 from sqlalchemy.orm import Session
 
+from grader.core.lti_outbox import scores_changed
 from grader.core.states import Role
 from grader.models import (Assignment, Course, LtiContext, LtiDeployment, LtiIdentity, LtiKey, LtiLaunchState,
                            LtiLineItem, LtiRegistration, LtiScore, User, utcnow)
@@ -410,7 +411,11 @@ def _note_context(session: Session, registration: LtiRegistration, claims: dict[
         row = LtiContext(registration_id=registration.id, context_id=context_id)
         session.add(row)
     if lineitems:  # a launch without the claim (a placement without grades) leaves the known endpoint alone
+        first = row.lineitems_url is None
         row.lineitems_url, row.scopes = lineitems, scopes
+        if first:  # a new gradebook gets the scores graded before it was known
+            session.flush()
+            scores_changed(session=session, course=registration.course)
     roster = claims.get(NRPS_CLAIM)
     if isinstance(roster, dict) and isinstance(roster.get("context_memberships_url"), str):
         row.memberships_url = roster["context_memberships_url"]
@@ -461,7 +466,7 @@ def _send_context(session: Session, context: LtiContext, assignment: Assignment,
     ags = AssignmentsGradesService(connector, service_data)
     item = session.scalar(select(LtiLineItem).where(LtiLineItem.context_id == context.id,
                                                     LtiLineItem.assignment_id == assignment.id))
-    out = []
+    out, unreachable = [], None
     for identity, c in due:
         prior = None if item is None else session.scalar(
             select(LtiScore).where(LtiScore.line_item_id == item.id, LtiScore.user_id == identity.user_id))
@@ -470,6 +475,8 @@ def _send_context(session: Session, context: LtiContext, assignment: Assignment,
             out.append(ScoreSent(identity.user.name, context.context_id, "unchanged", c.counted))
             continue
         try:
+            if unreachable is not None:  # one timeout per pass, not one per student: the rest wait for the retry
+                raise unreachable
             if item is None:
                 found = ags.find_or_create_lineitem(
                     LineItem().set_tag(f"grader-assignment-{assignment.id}").set_resource_id(str(assignment.id))
@@ -486,6 +493,8 @@ def _send_context(session: Session, context: LtiContext, assignment: Assignment,
             status, error = "sent", None
         except (LtiException, LtiServiceException, requests.RequestException, KeyError, ValueError) as exc:
             status, error = "failed", str(exc)[:1000]
+            if isinstance(exc, requests.RequestException):
+                unreachable = exc
         out.append(ScoreSent(identity.user.name, context.context_id, status, c.counted, error))
         if item is None:
             continue  # no line item yet: nothing to hold the failure; the next call tries again

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import os
+import time
 from concurrent.futures import ThreadPoolExecutor
 
 import httpx
@@ -109,3 +110,126 @@ def test_the_counted_score_reaches_the_gradebook_over_http(tool):
     assert sent.status_code == 200 and [s["status"] for s in sent.json()] == ["sent"], sent.text
     (item,) = tool.line_items
     assert item["scores"]["lms-user-17"]["scoreGiven"] == 4.5
+
+
+# --- scores sent on their own: the real stack (Celery worker grading for real), `grader reconcile` running ----------
+
+LMS_STUDENT = "lms-lina"
+
+
+@pytest.fixture(scope="module")
+def lms_class(stack):
+    """Course lti-class on the real stack: Lina (student, also LMS user lms-lina of the platform) and Lena
+    (instructor); the platform registered for it; `grader reconcile --every 1` running as docker-compose runs it."""
+    import subprocess
+    import sys
+
+    from sqlalchemy.orm import Session
+
+    from grader.models import LtiIdentity
+    from grader.services import accounts, lti
+
+    platform = Platform(tool=stack.url)
+    platform.people = {LMS_STUDENT: {"roles": [LEARNER], "name": "Lina Meitner", "email": "lina@example.edu"}}
+    with Session(stack.engine) as session:
+        course = accounts.get_or_create_course(session=session, name="lti-class")
+        for name, role in (("lina", "student"), ("lena", "instructor")):
+            user = accounts.get_or_create_user(session=session, course=course, name=name, role=role)
+            stack.tokens[name] = accounts.create_token(session=session, user=user)
+        registration = lti.create_registration(
+            session=session, course=course, issuer=platform.issuer, client_id=CLIENT_ID,
+            deployment_ids=[DEPLOYMENT_ID], auth_login_url=f"{platform.url}/auth",
+            auth_token_url=f"{platform.url}/token", key_set_url=f"{platform.url}/jwks")
+        lina = accounts.get_or_create_user(session=session, course=course, name="lina", role="student")
+        session.add(LtiIdentity(registration_id=registration.id, sub=LMS_STUDENT, user_id=lina.id))
+        session.commit()
+    log = stack.logs / "reconcile-lti.log"
+    reconciler = subprocess.Popen([sys.executable, "-m", "grader.cli", "reconcile", "--every", "1"], cwd=services.ROOT,
+                                  env=stack.env | {"PUBLIC_URL": stack.url}, stdout=log.open("ab"),
+                                  stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        yield platform
+    finally:
+        services.stop(reconciler)
+        platform.close()
+
+
+def _score(platform: Platform) -> dict | None:
+    return next((item["scores"].get(LMS_STUDENT) for item in platform.line_items if item["scores"]), None)
+
+
+def _outbox(stack, aid: int):
+    from sqlalchemy import select
+    from sqlalchemy.orm import Session
+
+    from grader.models import LtiOutbox
+
+    with Session(stack.engine) as session:
+        return session.scalar(select(LtiOutbox).where(LtiOutbox.assignment_id == aid))
+
+
+def test_the_gradebook_gets_each_changed_counted_score_without_a_send(stack, lms_class, browser):
+    """Grading, the release, a regrade and an override each reach the LMS gradebook through the reconciler's pass,
+    nobody sending; a withheld item keeps the score away until the release; a refused send is on the instructor's
+    LTI page until the gradebook is back and "Retry now" delivers it; passes after a delivery post nothing."""
+    from tests.factories import reference_sheet, rubric_v3
+    from tests.integration.helpers import SHOTS, signed_in, wait_until
+
+    platform = lms_class
+    with httpx.Client() as browser_jar:  # the student's launch tells the tool where the gradebook is
+        started = browser_jar.get(platform.login_url(LMS_STUDENT, "link-1"))
+        form = _Form()
+        form.feed(browser_jar.get(started.headers["location"]).text)
+        assert _post(browser_jar, platform, form.fields).status_code == 200
+    lena, lina = stack.client("lena"), stack.client("lina")
+    aid = lena.create_assignment("lti-class", {
+        "title": "Lab 3 (LMS)", "part": "sheet", "open_at": "2020-01-01T00:00:00Z", "due_at": "2099-01-01T00:00:00Z",
+        "hard_close_at": "2099-01-02T00:00:00Z", "item_visibility": {"C3": "on_release"}})["id"]
+    created = lina.submit(reference_sheet() | {"student": "lina"}, assignment_id=aid)
+    graded = lina.wait(created["id"], poll_s=0.5, timeout_s=600)
+    assert graded["status"] == "graded", graded
+    sid = created["id"]
+    # Graded, but C3 is withheld until the release: passes go by and the gradebook gets nothing.
+    wait_until(lambda: (row := _outbox(stack, aid)) is not None and row.waiting, "a pass that holds the score back")
+    time.sleep(2.5)
+    assert _score(platform) is None and all(not item["scores"] for item in platform.line_items)
+
+    # The release, with the gradebook down: the failure is on the instructor's page meanwhile.
+    platform.refuse_scores = True
+    lena.release(aid)
+    wait_until(lambda: (_outbox(stack, aid).last_error or "").count("503"), "a refused send recorded")
+    page = signed_in(browser, stack, "lena")
+    page.wait_for_selector(".who")  # signed in before going on
+    page.goto(f"{stack.url}/courses/lti-class/lti")
+    assert "gradebook down" in page.inner_text(f"#outbox-{aid}") and "failed" in page.inner_text(f"#outbox-{aid}")
+    page.screenshot(path=SHOTS / "lti_admin_failed.png", full_page=True)
+    assert _score(platform) is None
+    platform.refuse_scores = False
+    page.click("#retry-now")
+    page.wait_for_selector("#retried")
+    counted = {c["submission_id"]: c["counted_score"] for c in lena.counted_grades(aid)}[sid]
+    assert _score(platform)["scoreGiven"] == counted == lena.grade(sid)["total"]
+    assert _score(platform)["comment"] == f"attempt 1: {stack.url}/submissions/{sid}"
+    assert "gradebook down" not in page.inner_text("main")
+    page.screenshot(path=SHOTS / "lti_admin_sent.png", full_page=True)
+    delivered = _score(platform)
+    time.sleep(2.5)  # passes go by: nothing is posted again
+    assert _score(platform) is delivered
+
+    # A regrade under a tighter tolerance (B3 flips to no credit) changes the counted score: it goes.
+    published = lena.publish_rubric(rubric_v3(high_lane_unchanged=1e-6))
+    preview = lena.regrade_preview("lti-class", published["version"])
+    lena.commit_regrade("lti-class", published["version"], preview["content_hash"])
+    regraded = lena.grade(sid)["total"]
+    assert regraded < counted
+    wait_until(lambda: _score(platform)["scoreGiven"] == regraded, "the regraded score in the gradebook", 30)
+
+    # An override of one item changes it again: it goes.
+    answer = lena.http.post(f"/submissions/{sid}/overrides",
+                            json={"item_id": "B3", "score": 0.0 if regraded == counted else 1.0,
+                                  "comment": "the measured change was within the instrument's noise"})
+    assert answer.status_code == 201, answer.text
+    overridden = lena.grade(sid)["total"]
+    assert overridden != regraded
+    wait_until(lambda: _score(platform)["scoreGiven"] == overridden, "the overridden score in the gradebook", 30)
+    assert len(platform.line_items) == 1  # one column for the assignment, reused
