@@ -28,8 +28,9 @@ def _wait_for(predicate, what: str, log: Path, limit_s: float = services.STARTUP
 class PrivateRedis:
     """redis-server on a free port, no persistence: a restart loses every message, as the issue's fault does."""
 
-    def __init__(self, folder: Path):
+    def __init__(self, folder: Path, address: str = "127.0.0.1"):
         self.binary = shutil.which("redis-server")
+        self.address = address  # another test host reaches it on a veth address (tests/integration/hosts.py)
         if self.binary is None:
             services.unavailable("redis-server", FileNotFoundError("redis-server is not on PATH"))
         self.port = services.free_port()
@@ -39,20 +40,20 @@ class PrivateRedis:
 
     @property
     def url(self) -> str:
-        return f"redis://127.0.0.1:{self.port}/0"
+        return f"redis://{self.address}:{self.port}/0"
 
     def _ping(self) -> bool:
         import redis
 
         try:
-            return bool(redis.Redis(port=self.port, socket_timeout=0.5).ping())
+            return bool(redis.Redis(host=self.address, port=self.port, socket_timeout=0.5).ping())
         except redis.RedisError:
             return False
 
     def start(self) -> None:
         self.proc = subprocess.Popen(
-            [self.binary, "--port", str(self.port), "--bind", "127.0.0.1", "--save", "", "--appendonly", "no",
-             "--dir", str(self.folder)],
+            [self.binary, "--port", str(self.port), "--bind", self.address, "--save", "", "--appendonly", "no",
+             "--protected-mode", "no", "--dir", str(self.folder)],  # no password, on a private test address
             stdout=self.log.open("ab"), stderr=subprocess.STDOUT, start_new_session=True)
         _wait_for(self._ping, "private redis", self.log)
 
@@ -74,7 +75,8 @@ class PrivatePostgres:
     PostgreSQL refuses to run as root: as root it runs as user postgres (`runuser`), in its own temporary directory
     owned by postgres (pytest's tmp_path is private to root); as anyone else, as that user."""
 
-    def __init__(self):
+    def __init__(self, address: str = "127.0.0.1"):
+        self.address = address  # another test host reaches it on a veth address (tests/integration/hosts.py)
         self.bin = Path(shutil.which("pg_ctl") or "/usr/lib/postgresql/15/bin/pg_ctl").resolve().parent
         self.as_postgres = ["runuser", "-u", "postgres", "--"] if os.geteuid() == 0 else []
         if not (self.bin / "initdb").exists() or (self.as_postgres and shutil.which("runuser") is None):
@@ -88,7 +90,7 @@ class PrivatePostgres:
 
     @property
     def url(self) -> str:
-        return f"postgresql+psycopg2://postgres@127.0.0.1:{self.port}/postgres"
+        return f"postgresql+psycopg2://postgres@{self.address}:{self.port}/postgres"
 
     def _as_postgres(self, *argv: str) -> None:
         done = subprocess.run([*self.as_postgres, *argv], capture_output=True, text=True)
@@ -96,7 +98,8 @@ class PrivatePostgres:
             raise RuntimeError(f"{argv[0]} failed: {done.stdout[-2000:]}{done.stderr[-2000:]}")
 
     def _ctl(self, action: str, *extra: str) -> None:
-        options = f"-p {self.port} -k {self.folder} -c listen_addresses=127.0.0.1 -c fsync=off -c max_connections=50"
+        options = (f"-p {self.port} -k {self.folder} -c listen_addresses={self.address} -c fsync=off "
+                   "-c max_connections=50")
         self._as_postgres(str(self.bin / "pg_ctl"), action, "-D", str(self.data), "-l", str(self.log), "-w",
                           "-t", str(services.STARTUP_LIMIT_S), "-o", options, *extra)
 
@@ -104,6 +107,8 @@ class PrivatePostgres:
         if not self.data.exists():
             self._as_postgres(str(self.bin / "initdb"), "-D", str(self.data), "-U", "postgres", "-A", "trust",
                               "--no-sync", "-E", "UTF8")
+            with (self.data / "pg_hba.conf").open("a") as hba:  # initdb trusts loopback only
+                hba.write("host all all samenet trust\n")
         self._ctl("start")
 
     def stop(self) -> None:

@@ -2,10 +2,14 @@
 
 1. `grade_submission`: the rubric engine on the stored measurements; the grade (scores, verdicts, feedback) is
    stored and the submission is 'graded' as soon as it has run (about 0.3 s for L03);
-2. `complete_grade`: the lab figures drawn from the same results (never inside an API request), then the lab check
-   (L03 CHECK line) on the submission's own runs, added to the stored grade, which is then complete. Drawing takes
-   a few seconds; a student reads the score meanwhile and the report page says the rest is being drawn. Its task
+2. `complete_grade`: the lab check (L03 CHECK line) on the submission's own runs, added to the stored grade, which
+   is then complete. A student reads the score meanwhile and the report page says the check is coming. Its task
    waits on the cpu queue behind every case run (the lowest priority), so at a deadline the grades come first.
+
+No figure is drawn here: the report's charts are drawn in the reader's browser from the arrays stored in the
+database (grader/services/figure_series.py), so any API host shows them and a report is complete right after its
+cases. Drawing the 18 PNGs cost more CPU than the simulation (docs/benchmark.md, `figures`); the PNG figures
+(worker.figures) remain for the command line's offline report (`grader check`).
 
 Both are idempotent: a re-sent grade task (a worker killed while drawing; the reconciler re-sends it for a grade
 left incomplete) completes what is missing and never grades twice. State changes go through
@@ -13,8 +17,6 @@ grader.core.lifecycle.
 """
 
 from __future__ import annotations
-
-import time
 
 from sqlalchemy import update
 from sqlalchemy.exc import IntegrityError
@@ -44,7 +46,7 @@ def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
     try:
         book = course_rubric(session, submission.course_id, submission.lesson)
         grade = grade_and_store(session=session, submission=submission, book=book, complete=False,
-                                detail="figures and lab check next")
+                                detail="lab check next")
     except Exception as exc:  # a grading bug must be visible on the submission, not a stuck 'grading'
         session.rollback()
         submission = session.get(Submission, submission_id)
@@ -61,62 +63,36 @@ def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
 
 
 def complete_grade(*, session: Session, submission_id: int) -> Grade | None:
-    """Draw the figures of a submission's current grade and add its lab check, once; None when there is nothing
-    to complete (no grade, or complete already).
+    """Add the lab check to a submission's current grade, once; None when there is nothing to complete (no grade,
+    or complete already).
 
-    Nothing is locked while drawing (a write lock would stop every other writer of an SQLite database for seconds):
-    two completions of one grade draw the same files from the same runs, and only the first to store its check wins.
+    Nothing is locked while the check is evaluated (a write lock would stop every other writer of an SQLite
+    database): two completions of one grade evaluate the same runs, and only the first to store its check wins.
     """
     submission = session.get(Submission, submission_id)
     grade = current_grade(session, submission_id)
     if submission is None or grade is None or grade.completed_at is not None:
         return None
-    check, figures_note, check_note = _figures_and_check(submission, course_rubric(session, submission.course_id,
-                                                                                   submission.lesson))
+    check, check_note = _check(submission, course_rubric(session, submission.course_id, submission.lesson))
     report = {**grade.report, "check": check.model_dump(mode="json") if check is not None else None}
     stored = session.execute(update(Grade).where(Grade.id == grade.id, Grade.completed_at.is_(None))
                              .values(report=report, completed_at=utcnow())).rowcount == 1
     if not stored:  # completed meanwhile by a duplicate delivery of the grade task
         session.rollback()
         return None
-    session.add(Event(submission_id=submission.id, state="figures", detail=figures_note))
     session.add(Event(submission_id=submission.id, state="lab-check", detail=check_note))
     session.commit()
     session.refresh(grade)
     return grade
 
 
-def _figures_and_check(submission: Submission, book) -> tuple:
-    """(the lab check or None, the figures' event note, the check's event note). Never raises for what a re-sent
-    task could not mend either: runs unreadable since grading (arrays deleted) are recorded as such."""
+def _check(submission: Submission, book) -> tuple:
+    """(the lab check or None, the check's event note). Never raises for what a re-sent task could not mend either:
+    runs unreadable since grading are recorded as such."""
     try:
         results = {run.name: stored_result(run) for run in submission.case_runs}
-    except Exception as exc:  # noqa: BLE001 - recorded in both events; the grade stands and is complete
-        why = f"runs unreadable: {type(exc).__name__}: {exc}"
-        return None, f"figures failed: {why}", f"lab check failed: {why}"
-    figures_note, figures = draw_figures(submission.id, results)
+    except Exception as exc:  # noqa: BLE001 - recorded in the event; the grade stands and is complete
+        return None, f"lab check failed: runs unreadable: {type(exc).__name__}: {exc}"
     reused = {run.name: run.reused_from_id for run in submission.case_runs if run.reused_from_id}
-    check, check_note = lab_check(results, figures=figures, rubric=book, reused=reused,
-                                  artifacts_dir=settings.artifacts_dir)
-    return check, figures_note, check_note
-
-
-def draw_figures(submission_id: int, results: dict) -> tuple[str, list]:
-    """The lab figures of a submission's results, drawn once its grade is stored (`complete_grade`).
-
-    Failed case runs are passed too, so each figure names what it could not draw. A drawing failure never blocks
-    or changes the grade: it is recorded (the returned note becomes an event) and the pages show no figures.
-    Returns the note and the paths drawn.
-    """
-    # lazy: matplotlib (~0.7 s) loads only when figures are drawn, not in every Celery worker (bench memory target)
-    from worker.figures import FigureCache, lab_figures
-
-    folder = settings.figures_dir(submission_id)
-    cache = FigureCache(settings.artifacts_dir / "figure-cache")
-    started = time.perf_counter()
-    try:
-        paths = lab_figures(results, folder, cache=cache)
-    except Exception as exc:  # noqa: BLE001 - the evidence of a drawing bug is the event, the grade stands
-        return f"figures failed: {type(exc).__name__}: {exc}", []
-    return (f"{len(paths)} figures in {folder} ({cache.drawn} drawn, {cache.copied} copied from the figure cache: "
-            f"same runs, same drawing code) in {time.perf_counter() - started:.2f} s"), paths
+    # figures=None: the service writes no figure file; the report's charts are drawn from the stored arrays.
+    return lab_check(results, figures=None, rubric=book, reused=reused, artifacts_dir=settings.artifacts_dir)

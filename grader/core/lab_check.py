@@ -27,7 +27,7 @@ from rubric.check import CheckOutcome, OutputLocation, evaluate
 # the rubric version's tolerances, so a regrade evaluates it again on the same runs.
 
 
-def submission_check(results: Mapping[str, CaseResult], *, figures: Iterable[Path], artifacts_dir: Path,
+def submission_check(results: Mapping[str, CaseResult], *, figures: Iterable[Path] | None, artifacts_dir: Path,
                      rubric: Rubric, reused: Mapping[str, int] | None = None) -> CheckOutcome:
     """The L03 check over the submission's runs of the check's cases (N1-N4, friction-baseline, friction-table-0.30).
 
@@ -35,7 +35,7 @@ def submission_check(results: Mapping[str, CaseResult], *, figures: Iterable[Pat
     submission lacks is reported as not run. `reused` maps a case name to the case run whose measurement it reused.
     """
     lab = {name: results[name] for name in CHECK_CASES if name in results}
-    outputs = output_location(lab.values(), list(figures), artifacts_dir=Path(artifacts_dir))
+    outputs = output_location(lab.values(), None if figures is None else list(figures), artifacts_dir=Path(artifacts_dir))
     report = evaluate(lab, outputs=outputs, rubric=rubric)
     return report.outcome(notes=_service_notes(lab, reused or {}))
 
@@ -61,10 +61,12 @@ def _service_notes(lab: Mapping[str, CaseResult], reused: Mapping[str, int]) -> 
     return notes
 
 
-def output_location(results: Iterable[CaseResult], figures: list[Path], *, artifacts_dir: Path) -> OutputLocation:
+def output_location(results: Iterable[CaseResult], figures: list[Path] | None, *, artifacts_dir: Path) -> OutputLocation:
     """Every accepted result's arrays.npz and every figure under artifacts_dir, and artifacts_dir outside version
-    control (or ignored by it)."""
+    control (or ignored by it). figures None: the service wrote no figure file (its charts are drawn in the reader's
+    browser from the stored arrays, grader/services/figure_series.py), so only the arrays are checked."""
     root = artifacts_dir.resolve()
+    in_browser, figures = figures is None, list(figures or [])
     accepted = [r for r in results if r.ok and r.out_dir]
     # Where each .npz was written; its bytes are read from the database (stored_result), so a host that lost the
     # folder since loses nothing: a missing array is one the result does not hold.
@@ -75,8 +77,11 @@ def output_location(results: Iterable[CaseResult], figures: list[Path], *, artif
              "database with its run)" if not outside else f"OUTSIDE ARTIFACTS_DIR {root}: {outside[:3]}"]
     if missing:
         lines.append(f"arrays missing: {missing[:3]}")
-    passed = bool(arrays) and bool(figures) and not outside and not missing
-    if not figures:
+    passed = bool(arrays) and (bool(figures) or in_browser) and not outside and not missing
+    if in_browser:
+        lines.append("figures: drawn in the reader's browser from the arrays stored in the database, no figure file "
+                     "written")
+    elif not figures:
         lines.append("no figures were drawn for this grade")
     tracked, detail = _version_control(root)
     lines.append(detail)
@@ -105,7 +110,7 @@ def _version_control(folder: Path) -> tuple[bool, str]:
     return False, f"inside git work tree {top}, ignored by git and nothing under it tracked"
 
 
-def lab_check(results: Mapping[str, CaseResult], *, figures: list, rubric: Rubric, reused: Mapping[str, int],
+def lab_check(results: Mapping[str, CaseResult], *, figures: list | None, rubric: Rubric, reused: Mapping[str, int],
               artifacts_dir: Path) -> tuple[CheckOutcome | None, str]:
     """(the lab check of the submission's runs, or None, and a note for its event). A bug in evaluating the check
     never blocks or changes a grade: the grade then stores no check and the note says why. The note leaves the verdict

@@ -42,7 +42,7 @@ def test_only_the_hash_of_a_token_is_stored(api):
 
 def test_a_student_cannot_read_another_students_submission(api, alices):
     sid = alices["id"]
-    for path in ("", "/grade", "/case-runs", "/events", "/case-runs/N1/files/arrays.npz", "/figures"):
+    for path in ("", "/grade", "/case-runs", "/events", "/case-runs/N1/files/arrays.npz", "/series"):
         response = api.client.get(f"/v1/submissions/{sid}{path}", headers=api.as_("bob"))
         assert response.status_code == 404, (path, response.text)
     assert api.client.get("/v1/submissions", headers=api.as_("bob")).json() == []

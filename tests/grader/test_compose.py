@@ -56,11 +56,33 @@ def test_the_rocm_worker_gets_the_gpu_devices_and_a_rocm_torch_image(compose):
     assert "rocm" in base and "torch.version.hip" in dockerfile
 
 
-def test_kernel_cache_and_artifacts_are_named_volumes(compose):
-    assert {"genesis-cache", "artifacts"} <= set(compose["volumes"])
+def mounted(service: dict) -> set[str]:
+    """The sources (named volumes and host paths) a service mounts, in either of compose's volume syntaxes."""
+    return {v["source"] if isinstance(v, dict) else v.split(":")[0] for v in service.get("volumes", [])}
+
+
+def test_the_kernel_cache_is_a_named_volume_of_each_worker(compose):
+    assert "genesis-cache" in compose["volumes"]
     for name in ("worker-cpu", "worker-rocm"):
-        mounts = compose["services"][name]["volumes"]
-        assert any(m.startswith("genesis-cache:") for m in mounts) and any(m.startswith("artifacts:") for m in mounts)
+        assert "genesis-cache" in mounted(compose["services"][name])
+
+
+def test_the_api_and_the_workers_share_no_volume(compose):
+    """Issue 24: a worker on another host needs only DATABASE_URL and BROKER_URL. Each worker's ARTIFACTS_DIR is a
+    cache in its own container (tests/integration/test_two_hosts.py runs one on a host with a private disk)."""
+    services = compose["services"]
+    workers = {name: s for name, s in services.items() if name.startswith("worker-")}
+    assert set(workers) == {"worker-cpu", "worker-rocm"}
+    for side in ("api", "reconciler"):
+        for name, worker in workers.items():
+            shared = mounted(services[side]) & mounted(worker)
+            assert not shared, f"{side} and {name} share {shared}"
+    artifacts = compose["x-service-env"]["ARTIFACTS_DIR"]
+    for name in ("api", "reconciler", *workers):  # the grader's own containers: no volume over ARTIFACTS_DIR
+        service = services[name]
+        targets = {v["target"] if isinstance(v, dict) else v.split(":")[1] for v in service.get("volumes", [])}
+        assert not any(artifacts.startswith(t.rstrip("/") + "/") or artifacts == t for t in targets), (name, targets)
+    assert "artifacts" not in compose["volumes"]
 
 
 def test_deployment_uses_postgres_and_redis_not_the_embedded_defaults(compose):

@@ -94,17 +94,18 @@ def test_the_score_is_stored_first_and_the_figures_and_lab_check_join_it_once(ap
         assert complete_grade(session=session, submission_id=submission_id) is None
         assert grade_submission(session=session, submission_id=submission_id) is None
 
-    drawn = sorted(settings.figures_dir(submission_id).glob("*.png"))
-    assert drawn, "the figures were drawn from the graded runs"
+    assert not settings.figures_dir(submission_id).exists(), "the service draws no PNG: the browser draws the charts"
     assert check["verdict_line"].startswith("L03 CHECK: ")
     outputs = next(c for c in check["conditions"] if c["id"] == "outputs")
-    # The check saw the figures drawn for this grade, beside the runs' arrays.
-    expected = f"{len(CHECK_CASES)} .npz and {len(drawn)} .png files under ARTIFACTS_DIR"
+    # The check saw the runs' arrays under ARTIFACTS_DIR, and says where the figures come from instead of files.
+    expected = f"{len(CHECK_CASES)} .npz and 0 .png files under ARTIFACTS_DIR"
     assert outputs["passed"] and expected in outputs["evidence"], outputs
+    assert "figures: drawn in the reader's browser from the arrays stored in the database" in outputs["evidence"]
     states = _states(submission_id)
     assert states.count("graded") == 1 and states.count("lab-check") == 1
     assert states.index("graded") < states.index("lab-check"), states
-    assert states[-2:] == ["figures", "lab-check"], states
+    # The only "figures" event is the reconciler's re-send note (grader/reconcile.py); completing draws none.
+    assert states[-2:] == ["figures", "lab-check"] and states.count("figures") == 1, states
 
     state = api.client.get(f"/v1/submissions/{submission_id}", headers=api.as_("alice")).json()
     assert state["report_complete"] is True and state["total"] == total

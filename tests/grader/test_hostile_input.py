@@ -139,7 +139,7 @@ def test_the_body_guard_covers_every_json_route(api, route):
     assert response.status_code == 422 and "32 levels" in response.json()["errors"][0]["rule"], response.text
 
 
-ID_ROUTES = ["", "/grade", "/grades", "/case-runs", "/events", "/figures", "/figures/a.png",
+ID_ROUTES = ["", "/grade", "/grades", "/case-runs", "/events", "/series",
              "/case-runs/N1/files/spec.json", "/gradescope.json"]
 
 
@@ -171,8 +171,7 @@ TRAVERSALS = ["..%2F..%2F..%2Fetc%2Fpasswd", "%2E%2E", "%2E%2E%2Fsecret.png", ".
 
 
 @pytest.mark.parametrize("name", TRAVERSALS)
-@pytest.mark.parametrize("template", ["/v1/submissions/{sid}/figures/{name}",
-                                      "/v1/submissions/{sid}/case-runs/N1/files/{name}",
+@pytest.mark.parametrize("template", ["/v1/submissions/{sid}/case-runs/N1/files/{name}",
                                       "/v1/submissions/{sid}/case-runs/{name}/files/spec.json"])
 def test_path_traversal_never_reaches_the_filesystem(api, alices, template, name):
     from grader.core.db import new_session
@@ -282,7 +281,7 @@ def test_a_405_lists_every_method_of_the_path(api):
 
 
 def test_pages_answer_ids_outside_the_range_without_a_500(api):
-    for path in (f"/submissions/{2**63}", f"/audit/{2**63}", f"/submissions/{2**63}/figures/a.png", f"/audit/{2**31}"):
+    for path in (f"/submissions/{2**63}", f"/audit/{2**63}", f"/submissions/{2**63}/series.json", f"/audit/{2**31}"):
         assert api.client.get(path, headers=api.as_("prof")).status_code == 404, path
     refused = api.client.post("/audit/reruns", data={"case_run_id": str(2**63)}, headers=api.as_("tess"),
                               follow_redirects=False)

@@ -135,13 +135,15 @@ def test_course_views_and_exports_respect_roles(stack, first):
     assert httpx.get(f"{stack.url}/v1/courses/l03-test/grades.csv", headers=student).status_code == 403
     assert httpx.get(f"{stack.url}/v1/submissions/{created['id']}/gradescope.json",
                      headers=student).status_code == 403
-    figures = httpx.get(f"{stack.url}/v1/submissions/{created['id']}/figures", headers=student, timeout=120)
-    assert figures.status_code == 200 and figures.json()
-    # Drawn by the worker when it graded, under the service's run names: the student's own table exercise is
-    # compared with the baseline (no request draws anything).
-    assert "friction_compare_friction-baseline_vs_sheet.table_exercise.png" in figures.json()
-    png = httpx.get(f"{stack.url}/v1/submissions/{created['id']}/figures/{figures.json()[0]}", headers=student)
-    assert png.status_code == 200 and png.content[:4] == b"\x89PNG"
+    # The figures' data, read from the database under the service's run names: the student's own table exercise
+    # beside the baseline, each lane's series (the browser draws them; no worker draws a PNG any more).
+    series = httpx.get(f"{stack.url}/submissions/{created['id']}/series.json", headers=student, timeout=120)
+    assert series.status_code == 200, series.text
+    runs = {r["name"]: r for r in series.json()["runs"]}
+    for name in ("friction-baseline", "sheet.table_exercise"):
+        assert [lane["name"] for lane in runs[name]["lanes"]] == ["low", "high"], name
+        assert all(len(lane["x"]) == len(runs[name]["series"]["t"]) > 0 for lane in runs[name]["lanes"]), name
+    assert httpx.get(f"{stack.url}/v1/submissions/{created['id']}/series", headers=student).json() == series.json()
 
 
 def test_a_checkpoint_assignment_is_graded_by_the_worker_on_the_lesson_cases_then_at_once_on_them(stack):
