@@ -15,4 +15,5 @@ RUN pip install --no-cache-dir "fastapi>=0.110" "uvicorn>=0.29" "sqlalchemy>=2.0
 EXPOSE 8000
 HEALTHCHECK --interval=15s --timeout=5s --retries=5 \
     CMD python -c "import urllib.request; urllib.request.urlopen('http://127.0.0.1:8000/v1/health')"
-CMD ["sh", "-c", "grader admin migrate && uvicorn grader.main:app --host 0.0.0.0 --port 8000"]
+# API_WORKERS processes under uvicorn's own supervisor (it restarts one that dies); docker-compose.yml sets 2.
+CMD ["sh", "-c", "grader admin migrate && exec uvicorn grader.main:app --host 0.0.0.0 --port 8000 --workers ${API_WORKERS:-1}"]

@@ -83,6 +83,13 @@ class Settings(BaseSettings):
     rate_limit_audit_reruns: str = "20/hour"
     # Case runs one student may have waiting or running at once (a whole sheet queues at most 9).
     student_waiting_runs_max: int = Field(27, ge=1)
+    # The service's public URL (https://grader.example.edu): the report link in the comment of each score the
+    # reconciler's pass sends to an LMS gradebook (grader.services.lti_outbox). Empty: the comment names the attempt.
+    public_url: str = ""
+    # API processes the container starts (uvicorn --workers; docker-compose.yml sets 2): each holds its own
+    # api_threads and database pool. More than one needs RATE_LIMIT_STORAGE_URL on Redis (refused otherwise): in
+    # memory, each process would count its own share of every token's submissions.
+    api_workers: int = Field(1, ge=1, le=64)
 
     @field_validator("rate_limit_submissions", "rate_limit_audit_reruns")
     @classmethod
@@ -99,6 +106,9 @@ class Settings(BaseSettings):
         if self.artifacts_dir is None:
             self.artifacts_dir = self.data_dir / "artifacts"
         self.artifacts_dir = self.artifacts_dir.absolute()
+        if self.api_workers > 1 and self.rate_limit_storage_url.startswith("memory"):
+            raise ValueError("api_workers: more than one API process needs rate_limit_storage_url on Redis "
+                             "(redis://...), so that every process counts the same submissions")
         if self.environment == "production":
             for name in ("database_url", "broker_url"):
                 value = getattr(self, name).lower()

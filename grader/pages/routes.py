@@ -8,17 +8,18 @@ anything a caller may not read is a 404 page that reveals nothing. Every asset i
 from __future__ import annotations
 
 from fastapi import APIRouter, Form, Request, status
-from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, PlainTextResponse, RedirectResponse, Response
+from fastapi.responses import HTMLResponse, JSONResponse, PlainTextResponse, RedirectResponse, Response
 
+from grader.api import etag
 from grader.api.deps import SessionDep
 from grader.core.rubrics import current_grade, grade_history
-from grader.core.states import Role
+from grader.core.states import Role, SubmissionState
 from grader.models import Submission
 from grader.pages.auth import COOKIE, InstructorCourse, PageUser, clear_session_cookie, set_session_cookie
 from grader.pages.errors import not_found, sign_in_redirect
-from grader.pages.templates import TEMPLATES
+from grader.pages.templates import TEMPLATES, request_locale
 from grader.pages.views import report_view
-from grader.services import access, accounts, assignments, exports, sessions, submissions
+from grader.services import access, accounts, assignments, exports, figure_series, sessions, submissions
 from grader.services.errors import NotFound
 from grader.services.visibility import attempt_standing, grade_view
 from grader.settings import settings
@@ -121,13 +122,31 @@ def report_page(request: Request, submission_id: int, session: SessionDep, user:
     submission = _readable(session, user, submission_id)
     if submission is None:
         return _not_found(request, user, f"submission {submission_id}")
-    grade = grade_view(session=session, submission=submission, user=user)
+    # the report (the largest column) loads only if the page is built: a 304 never reads it
+    grade = grade_view(session=session, submission=submission, user=user, report=False)
     hidden = bool(grade.hidden)
-    view = report_view(submission, grade if grade.shown else None)
-    return TEMPLATES.TemplateResponse(request, "report.html", {
-        "user": user, "view": view, "part_titles": PART_TITLES,
-        "attempt": _attempts(session, [submission], user).get(submission.id),
-        "history": [] if hidden else grade_history(session, submission.id)})
+    attempt = _attempts(session, [submission], user).get(submission.id)
+
+    def build():
+        view = report_view(submission, grade if grade.shown else None)
+        return TEMPLATES.TemplateResponse(request, "report.html", {
+            "user": user, "view": view, "part_titles": PART_TITLES, "attempt": attempt,
+            "history": [] if hidden else grade_history(session, submission.id),
+            "charts": _charts(submission), "series_url": f"/submissions/{submission.id}/series.json"})
+
+    # A complete report answers 304 to a browser that holds it, and is rendered once per validator (grader.api.etag).
+    tag = etag.etag_of("report-page", etag.report_state(session, submission, user, grade), request_locale(request),
+                       {k: v for k, v in (attempt or {}).items() if k != "assignment"}, str(request.url)) \
+        if etag.complete(submission, grade) else None
+    return etag.conditional(request, tag, build, cache_key="report-page")
+
+
+def _charts(submission: Submission) -> list:
+    """The report's charts once the submission is graded (as the PNG figures were, drawn after grading), whatever
+    of the grade is withheld: they show measurements, which the case runs' downloads show too."""
+    if submission.status != SubmissionState.GRADED:
+        return []
+    return figure_series.report_charts(submission)
 
 
 @router.get("/submissions/{submission_id}/results.json")
@@ -140,19 +159,28 @@ def results_download(request: Request, submission_id: int, session: SessionDep, 
     grade = grade_view(session=session, submission=submission, user=user) if submission else None
     if grade is None or not grade.shown:
         return _not_found(request, user, f"grade of submission {submission_id}")
-    return JSONResponse(grade.report, headers={
-        "Content-Disposition": f'attachment; filename="submission-{submission.id}-results.json"'})
+    tag = etag.etag_of("results", etag.report_state(session, submission, user, grade)) \
+        if etag.complete(submission, grade) else None
+    return etag.conditional(request, tag, lambda: JSONResponse(grade.report, headers={
+        "Content-Disposition": f'attachment; filename="submission-{submission.id}-results.json"'}),
+        cache_key="results")
 
 
-@router.get("/submissions/{submission_id}/figures/{filename}")
-def figure_file(request: Request, submission_id: int, filename: str, session: SessionDep, user: PageUser):
+@router.get("/submissions/{submission_id}/series.json")
+def figure_series_json(request: Request, submission_id: int, session: SessionDep, user: PageUser):
+    """The measured series the report's charts draw, read from the database (any API host serves them): to whoever
+    may read the submission, like its evidence downloads; they hold no item's score or verdict."""
     if user is None:
         return Response(status_code=status.HTTP_401_UNAUTHORIZED)
     submission = _readable(session, user, submission_id)
-    path = settings.figures_dir(submission.id) / filename if submission is not None else None
-    if path is None or "/" in filename or not filename.endswith(".png") or not path.is_file():
-        return _not_found(request, user, f"figure {filename}")
-    return FileResponse(path, media_type="image/png")
+    if submission is None:
+        return _not_found(request, user, f"figures of submission {submission_id}")
+    # Built once per state of its runs (and reader) while the submission is finished: a report view asks again.
+    tag = etag.etag_of("series", [user.id, submission.id, figure_series.SHAPE, *[
+        [r.id, r.status, r.result_status, r.reused_from_id, str(r.finished_at)] for r in submission.case_runs]]) \
+        if submission.status in (SubmissionState.GRADED, SubmissionState.FAILED) else None
+    return etag.conditional(request, tag, lambda: JSONResponse(figure_series.submission_series(
+        submission=submission), headers={"Cache-Control": "private, no-cache"}), cache_key="series")
 
 
 @router.get("/submissions/{submission_id}/case-runs/{name}/{filename}")

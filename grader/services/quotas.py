@@ -4,6 +4,7 @@ per-token submission limit (grader.api.ratelimit) and each staff member's audit 
 from __future__ import annotations
 
 import math
+import threading
 import time
 from functools import lru_cache
 
@@ -15,9 +16,16 @@ from grader.services.errors import Refused
 from grader.settings import settings
 
 
+_MAKING = threading.Lock()
+
+
 @lru_cache
 def _limiter(storage_url: str) -> MovingWindowRateLimiter:
-    return MovingWindowRateLimiter(storage_from_string(storage_url))
+    # One thread at a time: the storage imports its client (redis) lazily, and a second request thread reading the
+    # half-imported module's version got "minimum version of 3.0 for 'redis' ... Found 0.0.0" (a 500) on a fresh
+    # API process's first concurrent submissions (tests/integration/test_api_processes.py).
+    with _MAKING:
+        return MovingWindowRateLimiter(storage_from_string(storage_url))
 
 
 def wait_for(what: str, key: str, rule: str) -> int | None:

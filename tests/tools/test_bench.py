@@ -105,3 +105,19 @@ def test_a_tiny_real_run_measures_a_case_three_ways_and_writes_its_json(tmp_path
     row = json.loads((tmp_path / "bench.json").read_text())["cases"]["per_case"]["N3"]
     assert 0 < row["stepping_s"] <= row["reused_s"] and row["warm_s"] > 0 and row["isolated_s"] > row["warm_s"]
     assert "reused/stepping" in result.output and "machine: shared" in result.output
+
+
+FIGURES = {"stack": "embedded", "repeats": 2, "submission_id": 5, "cold_cases_s": 14.05, "cold_complete_s": 14.62,
+           "complete_over_cases": 14.62 / 14.05, "cases_samples_s": [], "complete_samples_s": [],
+           "png": {"figures": 18, "cpu_s": 7.23, "wall_s": 7.5, "bytes": 2_110_000, "cpu_samples_s": []},
+           "series": {"cpu_s": 0.065, "bytes": 61_400, "gzip_bytes": 6_300, "served_bytes": 61_400,
+                      "api_cpu_per_request_s": 0.048, "api_wall_per_request_s": 0.06, "runs": 9}}
+
+
+def test_the_figures_table_sets_both_ways_beside_the_issue_24_targets():
+    """(the figures recorded by `python -m tools.bench --quick --only figures`, 2026-11-26, docs/benchmark.md)"""
+    text = "\n".join(tables.format_figures(FIGURES))
+    assert "(a) 18 PNGs drawn on the server     7.23 s CPU     2.11 MB   MISSED by 6.73 s (14.5x the 0.5 s)" in text
+    assert "(b) series built for the browser   0.065 s CPU    0.061 MB (6 kB gzipped)   met (<= 0.5 s)" in text
+    assert "served by the API               0.048 s CPU per request" in text
+    assert "report complete (lab check stored)  14.62 s after the POST, cases 14.05 s: 1.04x   met (<= 1.5 x)" in text

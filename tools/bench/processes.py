@@ -52,10 +52,11 @@ def start_worker(env: dict, queues: str, log: Path) -> subprocess.Popen:
     return proc
 
 
-def start_api(env: dict, port: int, log: Path) -> subprocess.Popen:
-    """The API under uvicorn on 127.0.0.1:port, returned once /v1/health answers 200."""
+def start_api(env: dict, port: int, log: Path, *, workers: int = 1) -> subprocess.Popen:
+    """The API under uvicorn on 127.0.0.1:port (`workers` processes, as deployed), returned once /v1/health answers."""
     proc = subprocess.Popen([sys.executable, "-m", "uvicorn", "grader.main:app", "--host", "127.0.0.1",
-                             "--port", str(port), "--log-level", "warning"], cwd=ROOT, env=env,
+                             "--port", str(port), "--log-level", "warning", "--workers", str(workers)],
+                            cwd=ROOT, env=env,
                             stdout=log.open("ab"), stderr=subprocess.STDOUT, start_new_session=True)
 
     def healthy() -> bool:

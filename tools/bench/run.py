@@ -10,8 +10,10 @@ from pathlib import Path
 from tools.bench import tables
 from tools.bench.cases import bench_cases, format_cases
 from tools.bench.classroom import bench_class
+from tools.bench.figures import bench_figures
 from tools.bench.load import bench_api
 from tools.bench.memory import bench_memory
+from tools.bench.reads import format_reads, run_reads
 from tools.bench.stack import service_stack
 from tools.bench.submission import bench_submission, reference_sheet, time_submission
 
@@ -56,13 +58,18 @@ def run_bench(o: BenchOptions, *, save: Callable[[str, object], None], log: Call
         out += [*format_cases(figures), *tables.format_case_targets(figures), ""]
     api_rows: list[dict] = []
     # One submission, API latency and memory share a stack: each measures from its own start.
-    if {"submission", "memory"} & set(o.parts) or ("api" in o.parts and "embedded" in o.api_stacks):
+    if {"submission", "figures", "memory"} & set(o.parts) or ("api" in o.parts and "embedded" in o.api_stacks):
         with service_stack("embedded", services, students=1) as stack:
             if "submission" in o.parts:
                 log("== one submission (embedded)")
                 figures = bench_submission(stack, o.repeats, log=log)
                 save("submission", figures)
                 out += [*tables.format_submission(figures), ""]
+            if "figures" in o.parts:
+                log("== a submission's figures: PNGs on the server, series for the browser (embedded)")
+                figures = bench_figures(stack, o.repeats, log=log)
+                save("figures", figures)
+                out += [*tables.format_figures(figures), ""]
             if "api" in o.parts and "embedded" in o.api_stacks:
                 log(f"== API latency, {o.api_clients} clients (embedded)")
                 api_rows += _api(stack, o, bench_api, log)
@@ -79,6 +86,8 @@ def run_bench(o: BenchOptions, *, save: Callable[[str, object], None], log: Call
             save("api", api_rows)
     if api_rows:
         out += [*tables.format_api(api_rows), ""]
+    if "reads" in o.parts:
+        out += [*format_reads(run_reads(o, services, graded_submission=_graded_submission, save=save, log=log)), ""]
     if "class" in o.parts:
         rows = []
         for kind in o.class_stacks:

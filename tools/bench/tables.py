@@ -16,6 +16,9 @@ TARGETS = {
     "memory_max_mb": (1536.0, "MB"),
     "memory_growth_pct": (5.0, "%"),
     "api_p95_ms": (50.0, "ms"),
+    # issue 24: a report complete within 1.5x of its cases, at most 0.5 s of server CPU per submission for figures
+    "complete_over_cases": (1.5, "x"),
+    "figures_cpu_s": (0.5, "s"),
 }
 
 
@@ -104,3 +107,18 @@ def format_case_targets(figures: dict) -> list[str]:
                      f"{verdict('reused_over_stepping', row['reused_over_stepping']):40s} "
                      f"warm/reused {faster:4.1f}x " + ("met" if faster >= 3 else f"MISSED ({faster:.1f}x of 3x)"))
     return lines
+
+
+def format_figures(f: dict) -> list[str]:
+    """The report's figures drawn as PNGs on the server against served as series for the browser, and when the
+    report was complete. The series' verdict is on one build (an API process may then answer from its cache)."""
+    png, series = f["png"], f["series"]
+    return [f"a submission's figures, {f['stack']}, on the same stored runs (median of {f['repeats']}):",
+            f"  (a) {png['figures']} PNGs drawn on the server   {png['cpu_s']:6.2f} s CPU   {png['bytes'] / 1e6:6.2f} MB   "
+            f"{verdict('figures_cpu_s', png['cpu_s'])}",
+            f"  (b) series built for the browser  {series['cpu_s']:6.3f} s CPU   {series['bytes'] / 1e6:6.3f} MB "
+            f"({series['gzip_bytes'] / 1e3:.0f} kB gzipped)   {verdict('figures_cpu_s', series['cpu_s'])}",
+            f"      served by the API              {series['api_cpu_per_request_s']:6.3f} s CPU per request",
+            f"  report complete (lab check stored) {f['cold_complete_s']:6.2f} s after the POST, cases "
+            f"{f['cold_cases_s']:.2f} s: {f['complete_over_cases']:.2f}x   "
+            f"{verdict('complete_over_cases', f['complete_over_cases'])}"]

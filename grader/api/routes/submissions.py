@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Depends, status
+from fastapi import APIRouter, Depends, Request, Response, status
 from sqlalchemy import select
 
 from grader import dispatch
+from grader.api import etag
 from grader.api.deps import CurrentUser, SessionDep, SubmissionDep
 from grader.api.ratelimit import limit_submissions
 from grader.api.responses import errors
@@ -15,7 +16,7 @@ from grader.models import Event
 from grader.schemas import CaseRunPublic, EventPublic, GradeHistoryEntry, GradePublic, SubmissionCreate, SubmissionPublic
 from grader.services import submissions
 from grader.services.errors import Conflict
-from grader.services.visibility import GradeView, grade_view
+from grader.services.visibility import GradeView, attempt_standing, grade_view
 
 router = APIRouter(prefix="/submissions", tags=["submissions"], responses=errors(401))
 ONE = errors(404, 422)
@@ -42,7 +43,7 @@ def create_submission(body: SubmissionCreate, session: SessionDep, user: Current
 def _shown(submission, session, user, *, every_item: bool = False) -> GradeView:
     """The grade as the caller may see it; 409 while its assignment withholds every item's score and feedback from
     this student (with `every_item`, while it withholds any)."""
-    view = grade_view(session=session, submission=submission, user=user)
+    view = grade_view(session=session, submission=submission, user=user, report=False)  # loaded when read
     why = view.some_withheld if every_item else view.nothing_shown
     if why:
         raise Conflict(f"grade of submission {submission.id} is withheld: {why}")
@@ -55,21 +56,36 @@ def list_submissions(session: SessionDep, user: CurrentUser):
     return [submission_public(s, session, user) for s in submissions.visible_submissions(session=session, user=user)]
 
 
-@router.get("/{submission_id}", response_model=SubmissionPublic, responses=ONE)
-def get_submission(submission: SubmissionDep, session: SessionDep, user: CurrentUser):
-    """Status and progress of one submission."""
-    return submission_public(submission, session, user)
+CONDITIONAL = {304: {"description": "Not modified: the complete report's ETag matches If-None-Match"}}
+
+
+def _json(model) -> Response:
+    return Response(model.model_dump_json(), media_type="application/json")
+
+
+@router.get("/{submission_id}", response_model=SubmissionPublic, responses={**ONE, **CONDITIONAL})
+def get_submission(request: Request, submission: SubmissionDep, session: SessionDep, user: CurrentUser):
+    """Status and progress of one submission. Once its report is complete it carries an ETag, and a matching
+    If-None-Match is answered 304 (poll with it)."""
+    view = grade_view(session=session, submission=submission, user=user, report=False)
+    tag = etag.etag_of("v1-submission", etag.report_state(session, submission, user, view),
+                       attempt_standing(session, submission, user, view)) if etag.complete(submission, view) else None
+    return etag.conditional(request, tag, lambda: _json(submission_public(submission, session, user)),
+                            cache_key="v1-submission")
 
 
 @router.get("/{submission_id}/grade", response_model=GradePublic,
-            responses={**ONE, **NOT_GRADED})
-def get_grade(submission: SubmissionDep, session: SessionDep, user: CurrentUser):
-    """The grade with per-item score, feedback and measured evidence."""
+            responses={**ONE, **NOT_GRADED, **CONDITIONAL})
+def get_grade(request: Request, submission: SubmissionDep, session: SessionDep, user: CurrentUser):
+    """The grade with per-item score, feedback and measured evidence; with an ETag once the report is complete
+    (304 to a matching If-None-Match)."""
     view = _shown(submission, session, user)
     if view.stored is None:
         detail = f"submission {submission.id} is {submission.status}, not graded"
         raise Conflict(detail + (f": {submission.error}" if submission.error else ""))
-    return grade_public(view)
+    tag = etag.etag_of("v1-grade", etag.report_state(session, submission, user, view)) \
+        if etag.complete(submission, view) else None
+    return etag.conditional(request, tag, lambda: _json(grade_public(view)), cache_key="v1-grade")
 
 
 @router.get("/{submission_id}/grades", response_model=list[GradeHistoryEntry], responses={**ONE, **NOT_GRADED})

@@ -1,0 +1,153 @@
+"""Reads of graded reports that keep up: 50 concurrent readers against one API process and against the deployed
+shape (API_WORKERS uvicorn processes over PostgreSQL and Redis), side by side in one run.
+
+Each reader reads a graded submission's four answers in turn (the report page, results.json, /v1/submissions/ID and
+its /grade), either plainly (every read answered in full: a first visit) or conditionally (the reader keeps each
+answer's ETag and sends it back as If-None-Match, as a polling page or a refreshing browser does: a 304 when
+nothing changed). The shapes take turns within each repeat, each started afresh, warmed up, measured and stopped, so
+both see the same machine; figures are medians over the repeats, with the ratios of one shape to the other."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import random
+import time
+from collections import Counter
+from collections.abc import Callable
+from pathlib import Path
+
+import httpx
+from tools.bench.processes import free_port, start_api, stop
+from tools.bench.stack import service_stack
+from tools.bench.stats import latency_summary, median
+
+READS = ("/submissions/{id}", "/submissions/{id}/results.json", "/v1/submissions/{id}", "/v1/submissions/{id}/grade")
+MODES = ("plain", "conditional")
+STACK = "redis-pg"  # the deployed shape's database and broker (docker-compose.yml)
+# The deployed shape: the api service's API_WORKERS in docker-compose.yml, or this run's environment's.
+DEPLOYED_WORKERS = int(os.environ.get("API_WORKERS", "2"))
+SUMMARY = ("p50_ms", "p95_ms", "p99_ms", "requests_per_s")
+
+
+async def _reader(http: httpx.AsyncClient, paths: list[str], requests: int, think_s: float, conditional: bool,
+                  latencies: list, statuses: Counter, errors: list) -> None:
+    tags: dict[str, str] = {}
+    await asyncio.sleep(random.uniform(0, think_s))  # readers do not all start on the same tick
+    for i in range(requests):
+        if i:
+            await asyncio.sleep(think_s)
+        path = paths[i % len(paths)]
+        headers = {"If-None-Match": tags[path]} if conditional and path in tags else {}
+        started = time.perf_counter()
+        try:
+            response = await http.get(path, headers=headers)
+            status = response.status_code
+        except httpx.HTTPError as exc:
+            status = type(exc).__name__
+        elapsed = time.perf_counter() - started
+        statuses[str(status)] += 1
+        if status == 200 or (status == 304 and headers):
+            latencies.append(elapsed)
+            if "etag" in response.headers:
+                tags[path] = response.headers["etag"]
+        else:
+            errors.append(f"{path}: {status}")
+
+
+async def _load(url: str, token: str, submission_id: int, clients: int, requests: int, think_s: float,
+                conditional: bool) -> dict:
+    paths = [p.format(id=submission_id) for p in READS]
+    latencies: list[float] = []
+    statuses: Counter = Counter()
+    errors: list[str] = []
+    limits = httpx.Limits(max_connections=clients)
+    async with httpx.AsyncClient(base_url=url, headers={"Authorization": f"Bearer {token}"}, timeout=60,
+                                 limits=limits) as http:
+        started = time.perf_counter()
+        await asyncio.gather(*(_reader(http, paths[i % 4:] + paths[:i % 4], requests, think_s, conditional,
+                                       latencies, statuses, errors) for i in range(clients)))
+        wall_s = time.perf_counter() - started
+    return {**latency_summary(latencies), "errors": len(errors), "error_examples": sorted(set(errors))[:5],
+            "statuses": dict(statuses), "requests_per_s": sum(statuses.values()) / wall_s}
+
+
+def _measure_shape(stack, workers: int, submission_id: int, who: str, clients: int, requests: int, think_s: float,
+                   log_dir: Path) -> dict[str, dict]:
+    """Start the API as `workers` processes on the stack's database, warm it, run each mode once, stop it."""
+    port = free_port()
+    env = dict(stack.env, API_WORKERS=str(workers))
+    api = start_api(env, port, log_dir / f"api-{workers}.log", workers=workers)
+    try:
+        url, token = f"http://127.0.0.1:{port}", stack.tokens[who]
+        # templates, pools, rubric parsing and the body cache of every process
+        asyncio.run(_load(url, token, submission_id, min(clients, 4 * workers), 4, 0.0, False))
+        return {mode: asyncio.run(_load(url, token, submission_id, clients, requests, think_s, mode == "conditional"))
+                for mode in MODES}
+    finally:
+        stop(api)
+
+
+def _medians(runs: list[dict]) -> dict:
+    return {**{k: median([r[k] for r in runs]) for k in SUMMARY}, "errors": sum(r["errors"] for r in runs),
+            "repeats": runs}
+
+
+def bench_reads(stack, submission_id: int, who: str, *, clients: int, requests: int, repeats: int, workers: int,
+                think_s: float, log: Callable[[str], None] = print) -> dict:
+    """One process and `workers` processes, `repeats` times each in turns, every mode; medians and ratios."""
+    shapes = {"one": 1, "deployed": workers}
+    runs: dict[str, dict[str, list]] = {s: {m: [] for m in MODES} for s in shapes}
+    for repeat in range(repeats):
+        order = list(shapes) if repeat % 2 == 0 else list(shapes)[::-1]
+        for shape in order:
+            got = _measure_shape(stack, shapes[shape], submission_id, who, clients, requests, think_s,
+                                 stack.data_dir)
+            for mode, figures in got.items():
+                runs[shape][mode].append(figures)
+                log(f"  {shape} ({shapes[shape]} process{'es' if shapes[shape] > 1 else ''}), {mode}, think "
+                    f"{think_s:g} s: p50 {figures['p50_ms']:.0f} ms, p95 {figures['p95_ms']:.0f} ms, p99 "
+                    f"{figures['p99_ms']:.0f} ms, {figures['requests_per_s']:.0f} req/s, {figures['errors']} errors")
+    out = {"stack": stack.kind, "clients": clients, "requests_per_client": requests, "think_s": think_s,
+           "repeats": repeats, "workers": shapes, "paths": list(READS),
+           "shapes": {s: {m: _medians(runs[s][m]) for m in MODES} for s in shapes}}
+    one, deployed = out["shapes"]["one"], out["shapes"]["deployed"]
+    out["ratios"] = {m: {"p95_one_over_deployed": one[m]["p95_ms"] / deployed[m]["p95_ms"],
+                         "requests_per_s_deployed_over_one": deployed[m]["requests_per_s"] / one[m]["requests_per_s"]}
+                     for m in MODES}
+    return out
+
+
+def run_reads(options, services: Path, *, graded_submission, save, log) -> list[dict]:
+    """The reads part of `python -m tools.bench`: one stack, one graded submission, one comparison per think time;
+    the deployed shape has API_WORKERS processes (docker-compose.yml's 2 unless set)."""
+    workers, rows = DEPLOYED_WORKERS, []
+    with service_stack(STACK, services, students=1) as stack:
+        submission_id, who = graded_submission(stack)
+        stop(stack.api)  # the shapes start their own API processes; an idle one would hold database connections
+        stack.env["RATE_LIMIT_STORAGE_URL"] = stack.env["BROKER_URL"]  # as deployed: counts shared through Redis
+        for think in options.api_think_s:
+            log(f"== reads of a graded report, {options.api_clients} clients, one process vs {workers} ({STACK})")
+            rows.append(bench_reads(stack, submission_id, who, clients=options.api_clients,
+                                    requests=options.api_requests, repeats=options.repeats, workers=workers,
+                                    think_s=think, log=log))
+            save("reads", rows)
+    return rows
+
+
+def format_reads(rows: list[dict]) -> list[str]:
+    """The side-by-side table, with the target (p95 <= 50 ms at 50 readers) met or missed per line."""
+    lines = ["API reads of a graded report: one process vs the deployed shape (medians over repeats)",
+             f"  {'shape':9s} {'procs':>5s} {'mode':11s} {'think':>5s} {'p50':>7s} {'p95':>7s} {'p99':>7s} "
+             f"{'req/s':>6s} {'errors':>6s}  target p95 <= 50 ms"]
+    for row in rows:
+        for shape, modes in row["shapes"].items():
+            for mode, f in modes.items():
+                verdict = "met" if f["p95_ms"] <= 50 else f"missed by {f['p95_ms'] - 50:.0f} ms"
+                lines.append(f"  {shape:9s} {row['workers'][shape]:5d} {mode:11s} {row['think_s']:5g} "
+                             f"{f['p50_ms']:7.1f} {f['p95_ms']:7.1f} {f['p99_ms']:7.1f} {f['requests_per_s']:6.0f} "
+                             f"{f['errors']:6d}  {verdict}")
+        for mode, r in row["ratios"].items():
+            lines.append(f"    {mode}, think {row['think_s']:g} s: p95 one/deployed {r['p95_one_over_deployed']:.2f}, "
+                         f"req/s deployed/one {r['requests_per_s_deployed_over_one']:.2f}")
+    return lines
