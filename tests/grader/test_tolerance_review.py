@@ -9,13 +9,29 @@ import dataclasses
 import html
 import re
 
-import numpy as np
 import pytest
 
 from tests.factories import mark_measured, reference_sheet
 
 PAGE = "/courses/l03/rubrics/L03/2"
 SHIFT_M = 0.0008  # lowers every centre height of the 64-bit twin: proxy and z differ by 0.8 mm (> 0.5 mm, > 0.1 mm)
+
+
+def precision_twin(session, run, real, user) -> list:
+    """A 64-bit audit re-run of `run` (measured as `real`) by `user`, whose stored measurement is `real` with every
+    centre height SHIFT_M lower, compared by the worker's own audit (worker.audit.audit_finished_run): its entries."""
+    from grader.core.audit import create_audit_rerun
+    from rubric.metrics import case_metrics
+    from worker.audit import audit_finished_run
+
+    twin_run = create_audit_rerun(session, source=run, backend="cpu", precision="64", mode=None, user=user)
+    spec = real.spec.model_copy(update={"precision": "64"})
+    arrays = dict(real.arrays, z=real.arrays["z"] - SHIFT_M)
+    twin = dataclasses.replace(real, spec=spec, arrays=arrays, metrics=case_metrics(spec, arrays), out_dir=None,
+                               provenance=real.provenance.model_copy(update={"precision": "64"}))
+    mark_measured(twin_run, twin)
+    session.commit()
+    return audit_finished_run(session, twin_run.id)
 
 
 def _row(html: str, name: str) -> str:
@@ -41,11 +57,8 @@ def precision_pair(api, measured) -> int:
     with every height 0.8 mm lower; the worker's audit compares them and stores the entry. Its id."""
     from sqlalchemy import select
 
-    from grader.core.audit import create_audit_rerun
     from grader.core.db import new_session
     from grader.models import CaseRun, User
-    from rubric.metrics import case_metrics
-    from worker.audit import audit_finished_run
 
     response = api.client.post("/v1/submissions", json={"sheet": reference_sheet() | {"student": "alice"}},
                                headers=api.as_("alice"))
@@ -55,15 +68,8 @@ def precision_pair(api, measured) -> int:
         run = session.scalar(select(CaseRun).where(CaseRun.submission_id == response.json()["id"],
                                                    CaseRun.name == "N1"))
         mark_measured(run, real)
-        tess = session.scalar(select(User).where(User.name == "tess"))
-        twin_run = create_audit_rerun(session, source=run, backend="cpu", precision="64", mode=None, user=tess)
-        spec = real.spec.model_copy(update={"precision": "64"})
-        arrays = dict(real.arrays, z=real.arrays["z"] - SHIFT_M)
-        twin = dataclasses.replace(real, spec=spec, arrays=arrays, metrics=case_metrics(spec, arrays), out_dir=None,
-                                   provenance=real.provenance.model_copy(update={"precision": "64"}))
-        mark_measured(twin_run, twin)
         session.commit()
-        entries = audit_finished_run(session, twin_run.id)
+        entries = precision_twin(session, run, real, session.scalar(select(User).where(User.name == "tess")))
         assert [e.classification for e in entries] in (["numeric_drift"], ["relation_changed"]), entries
         assert (entries[0].left_variant, entries[0].right_variant) == ("cpu/32/warm", "cpu/64/warm")
         return entries[0].id

@@ -7,18 +7,15 @@ out/screenshots/)."""
 
 from __future__ import annotations
 
-import os
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from zoneinfo import ZoneInfo
 
 import httpx
 import pytest
-from sqlalchemy.orm import Session
 
-from tests import services
 from tests.grader.test_assignments import checkpoint_sheet
-from tests.integration.helpers import SHOTS, MeasuredCourseApi
+from tests.integration.helpers import SHOTS, measured_course_api
 
 pytestmark = pytest.mark.integration
 COURSE = "l03-setup"
@@ -29,25 +26,8 @@ ZONE = "Europe/Berlin"
 def api(tmp_path_factory):
     """The API alone (uvicorn) on a fresh PostgreSQL database with the people of tests.factories; nothing is ever
     enqueued here."""
-    from grader.core.db import make_engine, migrate
-    from tests.factories import create_people
-
-    folder = tmp_path_factory.mktemp("setup-pages")
-    with services.postgres_database() as database_url:
-        migrate(database_url)
-        engine = make_engine(database_url)
-        with Session(engine) as session:
-            tokens = create_people(session, course=COURSE, other_course="other-course")
-            session.commit()
-        engine.dispose()
-        env = dict(os.environ, DATABASE_URL=database_url, BROKER_URL=services.REDIS_URL, DATA_DIR=str(folder),
-                   PYTHONPATH=str(services.ROOT))
-        port = services.free_port()
-        proc = services.start_api(env, port, folder / "api.log")
-        try:
-            yield MeasuredCourseApi(f"http://127.0.0.1:{port}", tokens)
-        finally:
-            services.stop(proc)
+    with measured_course_api(tmp_path_factory.mktemp("setup-pages"), None, course=COURSE) as running:
+        yield running
 
 
 def sign_in(browser, api, who: str):

@@ -7,7 +7,6 @@ page tests' class keeps its grades. Screenshots in /tmp/shots/review/ (or $REVIE
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import re
 from pathlib import Path
@@ -17,13 +16,13 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.models import CaseRun, RubricVersion, User
-from tests.factories import mark_measured, reference_sheet
+from tests.factories import reference_sheet
+from tests.grader.test_tolerance_review import precision_twin
 from tests.integration.helpers import submit_and_wait
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 COURSE = "review-class"
 SHOTS = Path(os.environ.get("REVIEW_SHOTS_DIR", "/tmp/shots/review"))
-SHIFT_M = 0.0008
 WIDER = "0.002"  # proxy_resolution 0.5 mm -> 2 mm: the proxy changes N1->N2 and N3->N4 (about 5 mm and 11 mm) stay
 # resolved, so A2 keeps its verdict; X2 and X3 read the same tolerance on N1 -> N5 (about 1.3 mm), which becomes
 # unresolved, so their verdicts can change
@@ -48,23 +47,12 @@ def review_class(stack):
 def _precision_twin(stack, submission_id: int) -> int:
     """A 64-bit audit re-run of Pia's N1 whose stored measurement is her real one 0.8 mm lower, compared by the
     worker's audit (worker.audit.audit_finished_run) in the stack's database; the entry's id."""
-    from grader.core.audit import create_audit_rerun
     from grader.core.lifecycle import stored_result
-    from rubric.metrics import case_metrics
-    from worker.audit import audit_finished_run
 
     with Session(stack.engine) as session:
         run = session.scalar(select(CaseRun).where(CaseRun.submission_id == submission_id, CaseRun.name == "N1"))
-        real = stored_result(run)
-        aude = session.scalar(select(User).where(User.name == "aude"))
-        twin_run = create_audit_rerun(session, source=run, backend="cpu", precision="64", mode=None, user=aude)
-        spec = real.spec.model_copy(update={"precision": "64"})
-        arrays = dict(real.arrays, z=real.arrays["z"] - SHIFT_M)
-        twin = dataclasses.replace(real, spec=spec, arrays=arrays, metrics=case_metrics(spec, arrays), out_dir=None,
-                                   provenance=real.provenance.model_copy(update={"precision": "64"}))
-        mark_measured(twin_run, twin)
-        session.commit()
-        entries = audit_finished_run(session, twin_run.id)
+        entries = precision_twin(session, run, stored_result(run),
+                                 session.scalar(select(User).where(User.name == "aude")))
         assert len(entries) == 1 and entries[0].right_variant.startswith("cpu/64/"), entries
         return entries[0].id
 
