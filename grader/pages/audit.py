@@ -12,6 +12,7 @@ from pydantic import ValidationError
 
 from grader import dispatch
 from grader.api.deps import MAX_ID, SessionDep
+from grader.i18n import N_
 from grader.models import AuditEntry
 from grader.pages.auth import PageUser, Staff
 from grader.pages.errors import not_found as _not_found
@@ -22,10 +23,11 @@ from grader.services.audit import AuditRerunRequest, Filters, entries_csv, filte
 from grader.services.errors import DomainError, Forbidden, NotFound
 
 router = APIRouter(include_in_schema=False)
+# The labels are msgids (N_): the pages show them in the reader's language through the `msg` filter.
 CLASS_TEXT = {
-    "identical": "identical", "within_tolerance": "within the reviewed tolerance", "numeric_drift": "numeric drift",
-    "relation_changed": "a qualitative relation changed", "provenance_violation": "provenance violation",
-    "not_compared": "not compared",
+    "identical": N_("identical"), "within_tolerance": N_("within the reviewed tolerance"),
+    "numeric_drift": N_("numeric drift"), "relation_changed": N_("a qualitative relation changed"),
+    "provenance_violation": N_("provenance violation"), "not_compared": N_("not compared"),
 }
 
 

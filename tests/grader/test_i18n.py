@@ -28,7 +28,7 @@ TEMPLATES = ROOT / "grader" / "templates"
 STUDENT_TEMPLATES = ["base.html", "course.html", "sheet_form.html", "submit_confirm.html", "progress.html",
                      "_progress_live.html", "report.html", "_attempt.html", "_grade_history.html",
                      "_item_review.html", "submissions.html", "sign_in.html", "sign_in_link.html", "error.html",
-                     "not_found.html"]
+                     "not_found.html", "lti_launched.html"]
 ZH = {"Accept-Language": "zh-CN,zh;q=0.9,en;q=0.8"}
 
 
