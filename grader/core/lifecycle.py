@@ -56,7 +56,18 @@ def _pid_alive(pid: int | None) -> bool:
         return False
     except PermissionError:
         return True
-    return True
+    return not _zombie(pid)
+
+
+def _zombie(pid: int) -> bool:
+    """A killed process nobody has reaped yet still answers signal 0: dead all the same. (Seen when a worker's whole
+    process tree was SIGKILLed and a new worker started on the same host within a second: its orphans were not yet
+    reaped by init, so the run they held looked alive and waited for the broker's redelivery, 13 minutes.)"""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:  # no /proc (not Linux) or gone meanwhile
+        return False
+    return stat.rsplit(")", 1)[-1].split()[0] in ("Z", "X")
 
 
 def dead_here(session: Session) -> list[CaseRun]:

@@ -159,7 +159,8 @@ def test_a_failed_and_a_stuck_run_are_resent_from_the_dashboard_and_graded(brows
     student = browser.new_page()  # Carol signs in: her post is refused, and nothing changes
     student.goto(f"{stack.url}/sign-in")
     student.fill("#token", token)
-    student.click("button[type=submit]")
+    student.click("form[action='/sign-in'] button[type=submit]")  # not the header's language buttons
+    student.wait_for_url(f"{stack.url}/submissions")
     refused = student.request.post(f"{stack.url}/courses/{COURSE}/dashboard/case-runs/{failing}/resend")
     assert refused.status == 404
     assert {r.id: r.status for r in case_runs(stack, submission_id)}[failing] == "failed"
