@@ -70,11 +70,11 @@ def test_the_score_is_stored_first_and_the_figures_and_lab_check_join_it_once(ap
         total = grade.total
     assert not settings.figures_dir(submission_id).exists(), "no figure is drawn before the grade is stored"
 
-    # The student reads the score at once; the API and the page say the rest is being drawn.
+    # The student reads the score at once; the API and the page say the lab check is being evaluated.
     state = api.client.get(f"/v1/submissions/{submission_id}", headers=api.as_("alice")).json()
     assert state["status"] == "graded" and state["total"] == total and state["report_complete"] is False
     page = api.client.get(f"/submissions/{submission_id}", headers=api.as_("alice")).text
-    assert "are being drawn from the same runs" in page and 'http-equiv="refresh"' in page
+    assert "is being evaluated on the same runs" in page and 'http-equiv="refresh"' in page
     assert "L03 CHECK: " not in page and "Grading in progress" not in page
 
     # A worker killed while drawing: within the lease nothing is re-sent; after it, the grade task is, once.

@@ -109,7 +109,7 @@ def test_a_grade_whose_figures_are_being_drawn_shows_the_score_and_refreshes_unt
         page.screenshot(path=str(SHOTS / "report-figures-being-drawn.png"), full_page=False)
         assert page.locator("#total .big").inner_text() == f"{total:g}"
         line = page.locator("#check-line").inner_text()
-        assert "Your grade above is stored and final" in line and "being drawn" in line, line
+        assert "Your grade above is stored and final" in line and "is being evaluated" in line, line
         assert page.locator('meta[http-equiv="refresh"]').count() == 1
         assert page.locator("#lab-check").count() == 0 and page.locator("text=Grading in progress").count() == 0
         state = stack.client("bob").submission(submission)
