@@ -12,7 +12,6 @@ from datetime import datetime
 from pathlib import Path
 from types import SimpleNamespace
 
-import pytest
 import yaml
 from babel.messages.extract import extract_from_dir, extract_from_file
 from babel.messages.frontend import parse_mapping_cfg
