@@ -106,7 +106,7 @@ def set_override(*, session: Session, submission: Submission, user: User, item_i
     """An instructor of the submission's course overrides one item's score (see the module's docstring).
 
     NotFound for another course's submission, Forbidden for anyone but an instructor, Conflict while it has no grade
-    or its figures and lab check are still being drawn, Invalid naming each field and rule; nothing is stored then.
+    or its lab check is still being evaluated, Invalid naming each field and rule; nothing is stored then.
     Commits unless `commit` is False (a review request's answer stores its override in its own transaction)."""
     if submission.course_id != user.course_id:
         raise NotFound(f"submission {submission.id} not found")
@@ -116,8 +116,8 @@ def set_override(*, session: Session, submission: Submission, user: User, item_i
     if grade is None:
         raise Conflict(f"submission {submission.id} is {submission.status}, not graded: nothing to override")
     if grade.completed_at is None:
-        raise Conflict(f"submission {submission.id}'s figures and lab check are still being drawn; override once "
-                       "they are (seconds)")
+        raise Conflict(f"submission {submission.id}'s lab check is still being evaluated; override once "
+                       "it is (seconds)")
     errors = check_override(grade.report, item_id=item_id, score=score, comment=comment)
     if errors:
         raise Invalid("invalid override", errors)

@@ -158,9 +158,9 @@ def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric, o
                  changed_items=[])
     if (grade.rubric_version, grade.rubric_hash) == (new_rubric.version, new_rubric.content_hash):
         return RegradeEntry(**entry, skipped=f"already graded under v{new_rubric.version}"), None
-    if grade.completed_at is None:  # its lab check would be evaluated on figures half drawn
-        return RegradeEntry(**entry, skipped="its figures and lab check are still being drawn: regrade it once "
-                                             "they are (seconds)"), None
+    if grade.completed_at is None:  # its lab check is being added to the stored grade (worker.grading.complete_grade)
+        return RegradeEntry(**entry, skipped="its lab check is still being evaluated: regrade it once it is "
+                                             "(seconds)"), None
     try:
         sheet = rubric.parse_sheet(submission.sheet, submission.part)
         measured = {run.name for run in submission.case_runs}

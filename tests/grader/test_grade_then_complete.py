@@ -131,4 +131,4 @@ def test_a_regrade_skips_a_grade_whose_figures_are_being_drawn(api, measured):
         book = load_rubric()
         newer = book.model_copy(update={"version": f"{book.version}.1"})
         entry, report = _regrade_one(submission, current_grade(session, submission_id), book, newer)
-    assert report is None and "still being drawn" in entry.skipped
+    assert report is None and "still being evaluated" in entry.skipped

@@ -41,8 +41,8 @@ class ReviewAnswer(Strict):
 
 
 @router.post("/submissions/{submission_id}/overrides", status_code=status.HTTP_201_CREATED,
-             response_model=OverridePublic, responses=errors(403, 409, _409="Not graded yet, or its figures and lab "
-                                                                            "check are still being drawn"))
+             response_model=OverridePublic, responses=errors(403, 409, _409="Not graded yet, or its lab check is "
+                                                                            "still being evaluated"))
 def create_override(body: OverrideCreate, submission: SubmissionDep, session: SessionDep, user: InstructorUser):
     """Set one item's score on a submission (instructors of its course), with a required comment; the measured
     verdict stays beside it and the previous grade is kept in the history."""
