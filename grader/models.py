@@ -6,20 +6,22 @@ All timestamps are naive UTC. Every state change of a submission or case run als
 
 from __future__ import annotations
 
-from datetime import UTC, datetime
+from datetime import datetime
 from typing import Any
 
 from sqlalchemy import (JSON, Boolean, DateTime, Float, ForeignKey, Index, Integer, LargeBinary, String, Text,
                         UniqueConstraint, text)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
+from grader.core import clock
 from grader.core.states import CaseRunPurpose, CaseRunState, SubmissionState
 
 # The values of role, status, purpose, part, counted_attempt and visibility columns are grader.core.states' enums.
 
 
 def utcnow() -> datetime:
-    return datetime.now(UTC).replace(tzinfo=None)
+    """Naive UTC now from the service's one clock (grader.core.clock), which tests may freeze or shift."""
+    return clock.now()
 
 
 class Base(DeclarativeBase):

@@ -37,6 +37,9 @@ class Settings(BaseSettings):
     # Retries for infrastructure failures only (database, broker, disk); a failed case is never retried elsewhere.
     max_infra_retries: int = Field(3, ge=0, le=10)
     execution_mode: Literal["warm", "isolated"] = "warm"
+    # Days added to the system clock by the service's one clock (grader.core.clock): a rehearsal of a term, or the
+    # suite run as if on another date (CLOCK_SHIFT_DAYS=365 make test). 0 in any real deployment.
+    clock_shift_days: float = 0.0
     # Flat memory measured over 350 reused-scene cases (928 MB), so recycling is a safety bound, not a need.
     warm_max_cases: int = Field(500, ge=1)
     # A warm case process resets and reuses a scene already built for a case of the same structure (same dt,

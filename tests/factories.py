@@ -105,7 +105,7 @@ def rubric_v3(**tolerance_values: float) -> dict:
     from rubric.rubrics import load_rubric
 
     content = load_rubric("L03", "2").model_dump(mode="json")
-    today = dt.date(2026, 11, 24).isoformat()
+    today = dt.date(2026, 11, 24).isoformat()  # not a clock time: a review record's date, compared with nothing
     content["version"] = "3"
     content["review"] = {"reviewer": "regrade test instructor", "review_date": today,
                          "notes": "tightened for the regrade tests"}

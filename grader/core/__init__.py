@@ -5,7 +5,7 @@ lifecycle    every state change of a case run or a       grading      scoring a 
              submission (claim, store, requeue, resend)  content_key  the key a stored measurement is reused by
 rubrics      rubric versions and a course's current one  lab_check    the lab check of a submission's own runs
 audit        the audit log's vocabulary and re-runs      timezones    course time zones
-security     token hashing
+security     token hashing                               clock        the one "now" (frozen by tests, shifted by settings)
 
 With grader.settings and grader.models, the only part of grader that worker/ imports; it imports no service, web
 layer or worker module (import-linter contract core-neutral in pyproject.toml).

@@ -20,7 +20,7 @@ from starlette.datastructures import FormData
 from grader.api.deps import SessionDep
 from grader.core.states import AssignmentParts, Visibility, values
 from grader.core.timezones import is_zone, zone
-from grader.models import Assignment, Course
+from grader.models import Assignment, Course, utcnow
 from grader.pages.auth import InstructorCourse, InstructorsAssignment, SignedIn
 from grader.pages.templates import TEMPLATES
 from grader.services import assignments as logic
@@ -211,7 +211,7 @@ def link_url(request: Request, secret: str) -> str:
 
 def issued_page(request: Request, user, course: Course, rows: list[dict], *, links: bool, what: str) -> HTMLResponse:
     """The one answer that shows new tokens and links: nothing keeps them but this page and its CSV."""
-    stamp = datetime.now(UTC).strftime("%Y%m%d-%H%M%S")
+    stamp = utcnow().strftime("%Y%m%d-%H%M%S")
     return TEMPLATES.TemplateResponse(request, "roster_issued.html", {
         "user": user, "course": course, "rows": rows, "links": links, "what": what,
         "csv": roster.issued_csv(rows), "filename": f"{course.name}-issued-{stamp}.csv",

@@ -38,6 +38,7 @@ def test_bad_zones_and_callers_are_refused_nothing_changed(api, who, body, statu
     assert api.client.get("/v1/courses/l03", headers=api.as_("prof")).json()["timezone"] == "UTC"
 
 
+@pytest.mark.clock("2026-11-25T10:00:00Z")  # a day after the hard close below, whatever the calendar says
 def test_refusals_and_pages_show_times_in_the_course_zone(api):
     assert patch(api, {"timezone": "Asia/Kolkata"}).status_code == 200
     closed = create(api, open_at=at(-3), due_at=at(-2), hard_close_at="2026-11-24T10:00:00Z").json()

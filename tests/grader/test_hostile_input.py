@@ -222,7 +222,7 @@ def test_another_students_or_courses_objects_are_not_found(api, alices):
     assert response.status_code == 404 and stored() == before
 
 
-def test_submissions_are_rate_limited_per_token_with_retry_after(api, monkeypatch):
+def test_submissions_are_rate_limited_per_person_with_retry_after(api, monkeypatch):
     from grader.settings import settings
 
     monkeypatch.setattr(settings, "rate_limit_submissions", "3/minute")
@@ -232,10 +232,12 @@ def test_submissions_are_rate_limited_per_token_with_retry_after(api, monkeypatc
     refused = api.client.post("/v1/submissions", json={"sheet": reference_sheet()}, headers=api.as_("alice"))
     assert refused.status_code == 429, refused.text
     assert 1 <= int(refused.headers["retry-after"]) <= 60
-    assert refused.json()["errors"][0] == {"field": "Authorization", "rule": "at most 3 per 1 minute submissions per token"}
+    assert refused.json()["errors"][0] == {"field": "submissions",
+                                           "rule": "at most 3 per 1 minute submissions per person"}
     assert stored()["submissions"] == 3
-    # Bad bodies count too (each costs validation); another token has its own allowance.
-    assert api.client.post("/v1/submissions", json={}, headers=api.as_("alice")).status_code == 429
+    # Bad sheets count too (each costs validation: the service counts before any work); another person has their own
+    # allowance (the sheet form's submissions count in the same one: tests/grader/test_limits_every_door.py).
+    assert api.client.post("/v1/submissions", json={"sheet": {}}, headers=api.as_("alice")).status_code == 429
     assert api.client.post("/v1/submissions", json={"sheet": reference_sheet()}, headers=api.as_("prof")).status_code == 202
 
 
@@ -294,11 +296,11 @@ def test_the_audit_csv_writes_utc_with_an_offset():
 
     from grader.services.audit import entries_csv
 
-    entry = SimpleNamespace(id=1, created_at=datetime(2026, 1, 2, 3, 4, 5), lesson="L03", case="N1",
+    entry = SimpleNamespace(id=1, created_at=datetime(2026, 1, 2, 3, 4, 5), lesson="L03", case="N1",  # not a clock time: CSV format
                             left_case_run_id=1, right_case_run_id=2, left_variant="cpu/32/warm",
                             right_variant="cpu/64/warm", left_provenance=None, right_provenance=None,
                             classification="identical", summary="")
-    assert entries_csv([entry]).splitlines()[1].startswith("1,2026-01-02T03:04:05+00:00,")
+    assert entries_csv([entry]).splitlines()[1].startswith("1,2026-01-02T03:04:05+00:00,")  # not a clock time: format
 
 
 def test_a_repeated_query_parameter_is_refused_naming_it(api):

@@ -54,7 +54,7 @@ def test_the_audit_csv_neutralises_a_summary_a_spreadsheet_would_evaluate():
 
     from grader.services.audit import entries_csv
 
-    entry = SimpleNamespace(id=1, created_at=datetime(2026, 1, 2, 3, 4, 5), lesson="L03", case="N1",
+    entry = SimpleNamespace(id=1, created_at=datetime(2026, 1, 2, 3, 4, 5), lesson="L03", case="N1",  # not a clock time: CSV format
                             left_case_run_id=1, right_case_run_id=2, left_variant="cpu/32/warm",
                             right_variant="cpu/64/warm", left_provenance={"versions": {"genesis": "@latest"}},
                             right_provenance=None, classification="identical", summary="=HYPERLINK(\"x\")")

@@ -16,6 +16,9 @@ from grader.core.db import new_session
 from grader.models import Assignment, CourseChange, Extension, User
 from tests.grader.test_assignments import ROSTER, at, create, submit
 
+# The forms below name days of December 2026 and January 2027: the clock stands before them on any calendar day.
+pytestmark = [pytest.mark.clock("2026-11-20T12:00:00Z")]
+
 BERLIN_FORM = {"title": "Week 3", "lesson": "L03", "part": "checkpoints", "open_at": "2026-12-01T10:00",
                "due_at": "2026-12-08T10:00", "hard_close_at": "2026-12-10T18:30", "late_penalty_per_day": "0.1",
                "late_penalty_cap": "0.3", "max_attempts": "3", "max_per_hour": "2", "counted_attempt": "best",

@@ -7,12 +7,13 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from datetime import UTC, datetime, timedelta
+from datetime import UTC, timedelta
 from pathlib import Path
 
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
+from grader.core import clock
 from grader.models import CaseRun, Event, Grade
 from tests import services
 from tests.factories import ROOT
@@ -116,8 +117,8 @@ def measured_course_api(folder: Path, measured, *, course: str) -> Iterator[Meas
 
 
 def at(**delta) -> str:
-    """Now plus `delta` (timedelta's keywords), whole seconds, as RFC 3339 UTC."""
-    return (datetime.now(UTC).replace(microsecond=0) + timedelta(**delta)).isoformat()
+    """The service's now (grader.core.clock) plus `delta` (timedelta's keywords), whole seconds, as RFC 3339 UTC."""
+    return (clock.now().replace(microsecond=0, tzinfo=UTC) + timedelta(**delta)).isoformat()
 
 
 def charts_drawn(page, selector: str = "#figures .chart[data-src]") -> None:

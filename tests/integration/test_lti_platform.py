@@ -13,6 +13,7 @@ import pytest
 from tests import services
 from tests.factories import create_people
 from tests.grader.test_lti import CLIENT_ID, DEPLOYMENT_ID, LEARNER, Platform, _Form
+from tests.integration.helpers import at
 
 pytestmark = pytest.mark.integration
 
@@ -92,8 +93,8 @@ def test_the_counted_score_reaches_the_gradebook_over_http(tool):
         assert _post(browser, tool, _form(browser, tool)).status_code == 200
     prof = {"Authorization": f"Bearer {tool.tokens['prof']}"}
     made = httpx.post(f"{tool.tool}/v1/courses/l03/assignments", headers=prof, json={
-        "title": "Lab 3", "part": "checkpoints", "open_at": "2020-01-01T00:00:00Z",
-        "due_at": "2099-01-01T00:00:00Z", "hard_close_at": "2099-01-02T00:00:00Z"})
+        "title": "Lab 3", "part": "checkpoints", "open_at": at(days=-1), "due_at": at(days=30),
+        "hard_close_at": at(days=31)})
     assert made.status_code == 201, made.text
     aid = made.json()["id"]
     with Session(tool.engine) as session:
@@ -183,8 +184,8 @@ def test_the_gradebook_gets_each_changed_counted_score_without_a_send(stack, lms
         assert _post(browser_jar, platform, form.fields).status_code == 200
     lena, lina = stack.client("lena"), stack.client("lina")
     aid = lena.create_assignment("lti-class", {
-        "title": "Lab 3 (LMS)", "part": "sheet", "open_at": "2020-01-01T00:00:00Z", "due_at": "2099-01-01T00:00:00Z",
-        "hard_close_at": "2099-01-02T00:00:00Z", "item_visibility": {"C3": "on_release"}})["id"]
+        "title": "Lab 3 (LMS)", "part": "sheet", "open_at": at(days=-1), "due_at": at(days=30),
+        "hard_close_at": at(days=31), "item_visibility": {"C3": "on_release"}})["id"]
     created = lina.submit(reference_sheet() | {"student": "lina"}, assignment_id=aid)
     graded = lina.wait(created["id"], poll_s=0.5, timeout_s=600)
     assert graded["status"] == "graded", graded

@@ -149,12 +149,14 @@ def test_course_views_and_exports_respect_roles(stack, first):
 def test_a_checkpoint_assignment_is_graded_by_the_worker_on_the_lesson_cases_then_at_once_on_them(stack):
     """Forced to measure anew, the first checkpoint sheet queues the lesson's cases, the worker runs them and grades
     it; the next one is graded in its request on exactly those runs, reused, nothing queued."""
-    from datetime import UTC, datetime, timedelta
+    from datetime import UTC, timedelta
 
     from rubric.scoring import LESSON_RUNS
     from tests.grader.test_assignments import checkpoint_sheet
 
-    now = datetime.now(UTC)
+    from grader.core import clock
+
+    now = clock.now().replace(tzinfo=UTC)  # the service's clock: CLOCK_SHIFT_DAYS moves both
     aid = stack.client("prof").create_assignment("l03-test", {
         "title": "Checkpoints", "part": "checkpoints", "open_at": (now - timedelta(hours=1)).isoformat(),
         "due_at": (now + timedelta(days=1)).isoformat(), "hard_close_at": (now + timedelta(days=2)).isoformat()})["id"]

@@ -14,6 +14,7 @@ from zoneinfo import ZoneInfo
 import httpx
 import pytest
 
+from grader.core import clock
 from tests.grader.test_assignments import checkpoint_sheet
 from tests.integration.helpers import SHOTS, measured_course_api
 
@@ -42,7 +43,7 @@ def sign_in(browser, api, who: str):
 
 def berlin(**delta) -> str:
     """Now plus `delta`, as a datetime-local value in the course's zone (whole minutes)."""
-    return (datetime.now(UTC) + timedelta(**delta)).astimezone(ZoneInfo(ZONE)).strftime("%Y-%m-%dT%H:%M")
+    return (clock.now().replace(tzinfo=UTC) + timedelta(**delta)).astimezone(ZoneInfo(ZONE)).strftime("%Y-%m-%dT%H:%M")
 
 
 def utc(local: str) -> str:

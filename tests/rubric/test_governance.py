@@ -37,7 +37,7 @@ def edited(rubric, *, version=None, review=None, **tolerances):
     return parse_rubric(data)
 
 
-NEW_REVIEW = {"reviewer": "second reviewer", "review_date": "2026-12-01"}
+NEW_REVIEW = {"reviewer": "second reviewer", "review_date": "2026-12-01"}  # not a clock time: a review record
 
 
 def test_load_rubric_latest_and_by_version():
