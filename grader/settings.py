@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 from limits import parse
 from pydantic import Field, field_validator, model_validator
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 PLACEHOLDERS = ("changeme", "change-me", "password@", ":postgres@")
 
@@ -89,6 +89,16 @@ class Settings(BaseSettings):
     # The service's public URL (https://grader.example.edu): the report link in the comment of each score the
     # reconciler's pass sends to an LMS gradebook (grader.services.lti_outbox). Empty: the comment names the attempt.
     public_url: str = ""
+    # Every URL the server fetches (LTI key sets, token endpoints, gradebooks, rosters: grader.core.outbound) is
+    # https to a public address. OUTBOUND_ALLOW_HTTP lets plain http through (tests on loopback, a local trial);
+    # OUTBOUND_ALLOWED_HOSTS (comma-separated host names, addresses or networks, each optionally :port) lets a
+    # platform inside a private network through. Each fetch ends within the timeout and reads at most the bytes.
+    outbound_allow_http: bool = False
+    outbound_allowed_hosts: Annotated[list[str], NoDecode] = Field(default_factory=list)
+    outbound_timeout_s: float = Field(10.0, gt=0, le=120)
+    outbound_max_bytes: int = Field(2_000_000, ge=1_000)
+    # Per client address, anonymous LTI logins (/lti/login): each stores a one-time state until it expires.
+    rate_limit_lti_logins: str = "30/minute"
     # API processes the container starts (uvicorn --workers; docker-compose.yml sets 2): each holds its own
     # api_threads and database pool. More than one needs RATE_LIMIT_STORAGE_URL on Redis (refused otherwise): in
     # memory, each process would count its own share of every token's submissions.
@@ -99,6 +109,17 @@ class Settings(BaseSettings):
     def _a_rate_limit(cls, value: str) -> str:
         parse(value)  # raises ValueError naming the bad notation
         return value
+
+    @field_validator("rate_limit_lti_logins")
+    @classmethod
+    def _an_lti_login_limit(cls, value: str) -> str:
+        parse(value)  # raises ValueError naming the bad notation
+        return value
+
+    @field_validator("outbound_allowed_hosts", mode="before")
+    @classmethod
+    def _comma_separated(cls, value):
+        return [x.strip() for x in value.split(",") if x.strip()] if isinstance(value, str) else value
 
     @model_validator(mode="after")
     def _derive_and_refuse_placeholders(self) -> "Settings":

@@ -24,6 +24,7 @@ from pylti1p3.redirect import Redirect
 from pylti1p3.request import Request as LtiRequest
 
 from grader.api.deps import SessionDep
+from grader.core import outbound
 from grader.core.states import STAFF, Role
 from grader.pages.auth import COOKIE, set_session_cookie
 from grader.pages.csrf import same_origin
@@ -99,6 +100,10 @@ class _Launch(MessageLaunch):
     def _get_request_param(self, key: str):
         return self._request.get_param(key)
 
+    def fetch_public_key(self, key_set_url: str):
+        # Ours, not the library's: under the outbound policy, and refused without the platform's body.
+        return lti.fetch_key_set(key_set_url)
+
 
 # pylti1p3's messages, by what they are about: the error page names that part of the launch.
 _FIELDS = (("Missing state", "state"), ("State not found", "state"), ('"nonce" is empty', "id_token.nonce"),
@@ -119,7 +124,8 @@ def _refused(exc: Exception, conf: lti.RegistrationConf) -> LaunchRefused:
     field = next((f for start, f in _FIELDS if start in message), "id_token")
     if conf.unmatched == "client_id":  # the issuer is registered, not for this client id
         field = "id_token.aud" if field == "id_token.iss" else "client_id" if field == "iss" else field
-    rule = next((r for start, r in _RULES.items() if start in message), message)
+    # Never the library's words where they may quote what a platform answered: ours, with the URL and status only.
+    rule = next((r for start, r in _RULES.items() if start in message), None) or lti.failure_text(exc)
     return LaunchRefused(field, rule)
 
 
@@ -129,6 +135,7 @@ def login(request: Request, session: SessionDep, iss: str | None = Form(None), l
           client_id: str | None = Form(None), lti_deployment_id: str | None = Form(None)):
     """OIDC login initiation (GET or POST from the platform): sends the browser to the platform's authorization
     endpoint with a fresh state (also set as a cookie) and nonce, and the tool's own launch URL."""
+    lti.admit_login(address=request.client.host if request.client else "")
     form = {"iss": iss, "login_hint": login_hint, "target_link_uri": target_link_uri,
             "lti_message_hint": lti_message_hint, "client_id": client_id, "lti_deployment_id": lti_deployment_id}
     params = dict(request.query_params) | {k: v for k, v in form.items() if v is not None}
@@ -151,14 +158,17 @@ def launch(request: Request, session: SessionDep, id_token: str = Form(""), stat
     registration's course and lands on the assignment the link points to."""
     params = {"id_token": id_token, "state": state}
     conf, cookies, states = lti.RegistrationConf(session), _Cookies(request), lti.LaunchStates(session, state)
-    message = _Launch(_Params(request, params), conf, states, cookies, requests_session=lti.FetchSession())
+    message = _Launch(_Params(request, params), conf, states, cookies, requests_session=outbound.session())
     # pylti1p3 checks the audience by registration; a token must also say when it ends.
     message.set_jwt_verify_options({"verify_aud": False, "require": ["exp", "iat"]})
     try:
         message.validate()
+    except LaunchRefused:  # the platform's key set, refused by lti.fetch_key_set
+        session.rollback()
+        raise
     except (LtiException, KeyError, TypeError, ValueError) as exc:  # the latter: a platform's malformed keys or claims
         session.rollback()
-        raise _refused(exc, conf) from exc
+        raise _refused(exc, conf) from None
     deep_linking = message.is_deep_link_launch()
     if not (deep_linking or message.is_resource_launch()):
         session.rollback()

@@ -6,12 +6,14 @@ The protocol (token format, signatures, claims, the services' requests) is pylti
 from __future__ import annotations
 
 import hashlib
+import re
 from dataclasses import dataclass
 from datetime import timedelta
 from typing import Any
-from urllib.parse import urlsplit
+from urllib.parse import urljoin, urlsplit
 
 import requests
+from limits import parse
 from jwcrypto.jwk import JWK
 from pylti1p3.assignments_grades import AssignmentsGradesService
 from pylti1p3.deep_link import DeepLink
@@ -28,20 +30,23 @@ from pylti1p3.tool_config import ToolConfAbstract
 from sqlalchemy import delete, select, update
 from sqlalchemy.orm import Session
 
+from grader.core import outbound
 from grader.core.lti_outbox import scores_changed
 from grader.core.states import Role
 from grader.models import (Assignment, Course, LtiContext, LtiDeployment, LtiIdentity, LtiKey, LtiLaunchState,
                            LtiLineItem, LtiRegistration, LtiScore, User, utcnow)
 from grader.services.assignments import counted_grades
-from grader.services.errors import Conflict, DomainError, Invalid
+from grader.services import quotas
+from grader.services.errors import Conflict, DomainError, Invalid, Refused
 from grader.services.visibility import grade_view
+from grader.settings import settings
 
 # The platform has this long between the tool's login redirect and its launch POST.
 STATE_LIFETIME = timedelta(minutes=10)
 # A rotated-out key stays in the tool's JWKS this long: what it signed just before the rotation still verifies.
 RETIRED_KEY_KEPT = timedelta(days=2)
-# Fetching a platform's JWKS must not hold a request thread for long.
-FETCH_TIMEOUT_S = 10
+# Pages of a roster or of line items one listing follows at most: a platform's `next` links must end.
+MAX_PAGES = 200
 
 CLAIM = "https://purl.imsglobal.org/spec/lti/claim/"
 INSTRUCTOR_ROLES = ("http://purl.imsglobal.org/vocab/lis/v2/membership#Instructor", "Instructor")
@@ -58,11 +63,18 @@ class LaunchRefused(DomainError):
 
 # --- registrations -----------------------------------------------------------------------------------------------
 
-def _url(field: str, value: str, errors: list[dict[str, str]]) -> str:
+def _url(field: str, value: str, errors: list[dict[str, str]], *, fetched: bool = True) -> str:
+    """The URL, with its refusal added to `errors`: a URL the server fetches must pass the outbound policy
+    (grader.core.outbound, checked again at every fetch); the login URL, where only browsers go, must be https."""
     value = (value or "").strip()
     parts = urlsplit(value)
     if parts.scheme not in ("http", "https") or not parts.netloc:
         errors.append({"field": field, "rule": "must be an absolute http(s) URL"})
+    elif fetched and (refusal := outbound.url_refusal(value)):
+        errors.append({"field": field, "rule": refusal})
+    elif not fetched and parts.scheme == "http" and not settings.outbound_allow_http:
+        errors.append({"field": field, "rule": "must be an https URL (plain http is refused unless the operator "
+                                               "allows it: OUTBOUND_ALLOW_HTTP)"})
     return value
 
 
@@ -81,8 +93,9 @@ def create_registration(*, session: Session, course: Course, issuer: str, client
     if not deployments or any(len(d) > 255 for d in deployments):
         errors.append({"field": "deployment_ids",
                        "rule": "must name at least one deployment id of 1 to 255 characters"})
-    urls = {name: _url(name, value, errors) for name, value in (
-        ("auth_login_url", auth_login_url), ("auth_token_url", auth_token_url), ("key_set_url", key_set_url))}
+    urls = {"auth_login_url": _url("auth_login_url", auth_login_url, errors, fetched=False),
+            "auth_token_url": _url("auth_token_url", auth_token_url, errors),
+            "key_set_url": _url("key_set_url", key_set_url, errors)}
     if errors:
         raise Invalid("registration refused", errors)
     if session.scalar(select(LtiRegistration).where(LtiRegistration.issuer == issuer,
@@ -240,22 +253,130 @@ class LaunchStates(SessionService):
         return None
 
 
+# Used or expired logins are kept this long after they expire, for a look at what was refused, then deleted.
+STATE_KEPT = timedelta(days=1)
+
+
+def admit_login(*, address: str) -> None:
+    """Counts one anonymous login from this client address (each stores a state row): past
+    settings.rate_limit_lti_logins it is Refused (429) before any work, with the seconds until one frees."""
+    rule = settings.rate_limit_lti_logins
+    retry_after = quotas.wait_for("LTI logins", address or "unknown", rule)
+    if retry_after is not None:
+        raise Refused("client address", f"at most {parse(rule)} LTI logins from one address; try again in "
+                                        f"{retry_after} s", retry_after, detail="too many LTI logins")
+
+
+def forget_launch_states(*, session: Session, now=None) -> int:
+    """Deletes the logins that expired more than STATE_KEPT ago (at every login, and by the reconciler's pass);
+    how many. No commit."""
+    now = now or utcnow()
+    return session.execute(delete(LtiLaunchState).where(LtiLaunchState.expires_at < now - STATE_KEPT)).rowcount
+
+
 def record_login(*, session: Session, registration: LtiRegistration, state: str, nonce: str) -> None:
     """Remembers the state and nonce a login sent to the platform, for the one launch that may answer it."""
     now = utcnow()
-    # Used or expired logins are only kept a day, for a look at what was refused.
-    session.execute(delete(LtiLaunchState).where(LtiLaunchState.expires_at < now - timedelta(days=1)))
+    forget_launch_states(session=session, now=now)
     session.add(LtiLaunchState(registration_id=registration.id, state=state, nonce=nonce, created_at=now,
                                expires_at=now + STATE_LIFETIME))
     session.flush()
 
 
-class FetchSession(requests.Session):
-    """requests with a timeout on every call: pylti1p3 fetches the platform's JWKS without one."""
+# --- what the server fetches from a platform: through grader.core.outbound, errors in our words ----------------------
 
-    def request(self, method, url, **kwargs):
-        kwargs.setdefault("timeout", FETCH_TIMEOUT_S)
-        return super().request(method, url, **kwargs)
+def fetch_key_set(url: str) -> dict[str, Any]:
+    """The platform's JWKS at `url` (the registration's key_set_url), fetched under the outbound policy. Refused
+    with the URL and the status only: the platform's body never reaches the error page."""
+    try:
+        response = outbound.session().get(url, headers={"Accept": "application/json"})
+    except outbound.OutboundError as exc:
+        raise LaunchRefused("key_set_url", str(exc)) from None
+    if not response.ok:
+        raise LaunchRefused("key_set_url", f"{url} answered HTTP {response.status_code}")
+    try:
+        keys = response.json()
+    except ValueError:
+        keys = None
+    if not isinstance(keys, dict) or not isinstance(keys.get("keys"), list) or not all(
+            isinstance(key, dict) for key in keys["keys"]):
+        raise LaunchRefused("key_set_url", f"{url} answered HTTP {response.status_code} without a JSON key set "
+                                           "({\"keys\": [...]})")
+    return keys
+
+
+def _next_page(response: requests.Response) -> str | None:
+    """The Link header's rel="next" URL exactly as the platform sent it (pylti1p3 lower-cases the whole header, which
+    breaks a case-sensitive cursor), resolved against the page's own URL."""
+    for link in requests.utils.parse_header_links(response.headers.get("Link", "").replace("\n", " ")):
+        if "next" in link.get("rel", "").lower().split() and link.get("url"):
+            return urljoin(response.url, link["url"])
+    return None
+
+
+class _Connector(ServiceConnector):
+    """pylti1p3's service connector over the guarded session (grader.core.outbound), with errors in our words (the
+    library's carry the platform's body) and `next` links kept as sent. At most MAX_PAGES requests per connector
+    besides the token."""
+
+    def __init__(self, registration: Registration):
+        super().__init__(registration, requests_session=outbound.session())
+        self._requests = 0
+
+    def get_access_token(self, scopes) -> str:
+        url = self._registration.get_auth_token_url()
+        try:
+            return super().get_access_token(scopes)
+        except LtiServiceException as exc:
+            raise LtiException(f"the token request to {url} answered HTTP {exc.response.status_code}") from None
+        except (ValueError, KeyError, TypeError):
+            raise LtiException(f"the token request to {url} answered without a JSON access_token") from None
+
+    def make_service_request(self, scopes, url: str, is_post: bool = False, data: str | None = None,
+                             content_type: str = "application/json", accept: str = "application/json",
+                             case_insensitive_headers: bool = False):
+        self._requests += 1
+        if self._requests > MAX_PAGES:
+            raise LtiException(f"{url}: more than {MAX_PAGES} requests in one listing; stopped")
+        headers = {"Authorization": "Bearer " + self.get_access_token(scopes), "Accept": accept}
+        if is_post:
+            headers["Content-Type"] = content_type
+            response = self._requests_session.post(url, data=data or None, headers=headers)
+        else:
+            response = self._requests_session.get(url, headers=headers)
+        if not response.ok:
+            raise LtiException(f"{url} answered HTTP {response.status_code}")
+        try:
+            body = response.json() if response.content else None
+        except ValueError:
+            raise LtiException(f"{url} answered HTTP {response.status_code} without JSON") from None
+        return {"headers": response.headers if case_insensitive_headers else dict(response.headers), "body": body,
+                "next_page_url": _next_page(response)}
+
+
+def _connector(session: Session, registration: LtiRegistration) -> _Connector:
+    return _Connector(RegistrationConf(session).library_registration(registration))
+
+
+# What a failed exchange with a platform may say: ours, built from the URL and the HTTP status. A library message
+# that could hold the platform's body (pylti1p3 quotes it) is replaced.
+_UNSAFE = re.compile(r"HTTP response \[|Must be JSON|Error during fetch URL")
+
+
+def failure_text(exc: BaseException) -> str:
+    """What an instructor or a page may read of a failed exchange with a platform: never the remote body."""
+    if isinstance(exc, LtiServiceException):
+        return f"{exc.response.url} answered HTTP {exc.response.status_code}"
+    if isinstance(exc, outbound.OutboundError):
+        return str(exc)
+    if isinstance(exc, requests.RequestException):
+        return "the platform could not be reached"
+    text = str(exc)
+    if isinstance(exc, KeyError):
+        return f"the platform's answer lacks {text}"
+    if _UNSAFE.search(text):
+        return "the platform's answer was refused"
+    return text[:300]
 
 
 # --- what a launch means here ------------------------------------------------------------------------------------
@@ -298,7 +419,7 @@ def sign_in(*, session: Session, registration: LtiRegistration, claims: dict[str
     role = role_of(roles if isinstance(roles, list) else [])
     assignment = _linked_assignment(session, registration, claims.get(CLAIM + "custom"))
     user, _ = _person(session, registration, sub, role, claims.get("name"), claims.get("email"))
-    _note_context(session, registration, claims)
+    _note_context(session, registration, claims, assignment)
     session.flush()
     session.refresh(user)
     return Landing(user=user, assignment=assignment)
@@ -393,16 +514,46 @@ AGS_ENDPOINT = "https://purl.imsglobal.org/spec/lti-ags/claim/endpoint"
 NRPS_CLAIM = "https://purl.imsglobal.org/spec/lti-nrps/claim/namesroleservice"
 SCORE_SCOPE = "https://purl.imsglobal.org/spec/lti-ags/scope/score"
 LINEITEM_SCOPE = "https://purl.imsglobal.org/spec/lti-ags/scope/lineitem"
+LINEITEM_READ_SCOPE = "https://purl.imsglobal.org/spec/lti-ags/scope/lineitem.readonly"
 
 
-def _note_context(session: Session, registration: LtiRegistration, claims: dict[str, Any]) -> None:
-    """Keeps the launch's LMS course and its grades service endpoint (the latest launch's word counts)."""
+def _service_url(value: Any) -> str | None:
+    """A service URL of a launch's claims, or None when it is no absolute http(s) URL (fetched later under the
+    outbound policy, which checks it again)."""
+    if not isinstance(value, str) or len(value) > 2000:
+        return None
+    parts = urlsplit(value)
+    return value if parts.scheme in ("http", "https") and parts.netloc else None
+
+
+def _use_link_line_item(session: Session, context: LtiContext, assignment: Assignment, url: str) -> None:
+    """The launch's link has its own gradebook column (the AGS claim's `lineitem`): the assignment's scores in this
+    LMS course go there, not to a column the tool would create. A column known before under another URL forgets
+    what was sent to it, so every score is sent to the link's column."""
+    item = session.scalar(select(LtiLineItem).where(LtiLineItem.context_id == context.id,
+                                                    LtiLineItem.assignment_id == assignment.id))
+    if item is not None and item.url == url:
+        return
+    if item is None:
+        session.add(LtiLineItem(context_id=context.id, assignment_id=assignment.id, url=url))
+    else:
+        session.execute(delete(LtiScore).where(LtiScore.line_item_id == item.id))
+        item.url = url
+    session.flush()
+    scores_changed(session=session, assignment=assignment)
+
+
+def _note_context(session: Session, registration: LtiRegistration, claims: dict[str, Any],
+                  assignment: Assignment | None = None) -> None:
+    """Keeps the launch's LMS course and its grades service endpoint (the latest launch's word counts), and the
+    link's own line item for the assignment it opens."""
     context = claims.get(CLAIM + "context")
     context_id = context.get("id") if isinstance(context, dict) else None
     if not isinstance(context_id, str) or not 0 < len(context_id) <= 255:
         return
     endpoint = claims.get(AGS_ENDPOINT) if isinstance(claims.get(AGS_ENDPOINT), dict) else {}
-    lineitems = endpoint.get("lineitems") if isinstance(endpoint.get("lineitems"), str) else None
+    lineitems = _service_url(endpoint.get("lineitems"))
+    lineitem = _service_url(endpoint.get("lineitem"))
     scopes = [x for x in endpoint.get("scope", []) if isinstance(x, str)] if isinstance(endpoint.get("scope"),
                                                                                         list) else []
     row = session.scalar(select(LtiContext).where(LtiContext.registration_id == registration.id,
@@ -410,14 +561,19 @@ def _note_context(session: Session, registration: LtiRegistration, claims: dict[
     if row is None:
         row = LtiContext(registration_id=registration.id, context_id=context_id)
         session.add(row)
-    if lineitems:  # a launch without the claim (a placement without grades) leaves the known endpoint alone
+    if lineitems or lineitem:  # a launch without the claim (a placement without grades) leaves the known alone
+        row.scopes = scopes
+    if lineitems:
         first = row.lineitems_url is None
-        row.lineitems_url, row.scopes = lineitems, scopes
+        row.lineitems_url = lineitems
         if first:  # a new gradebook gets the scores graded before it was known
             session.flush()
             scores_changed(session=session, course=registration.course)
+    if lineitem and assignment is not None:
+        session.flush()
+        _use_link_line_item(session, row, assignment, lineitem)
     roster = claims.get(NRPS_CLAIM)
-    if isinstance(roster, dict) and isinstance(roster.get("context_memberships_url"), str):
+    if isinstance(roster, dict) and _service_url(roster.get("context_memberships_url")):
         row.memberships_url = roster["context_memberships_url"]
     row.updated_at = utcnow()
 
@@ -438,9 +594,11 @@ def send_scores(*, session: Session, assignment: Assignment, report_url: str = "
     no score (it would tell the hidden items). `report_url` is the report's URL with `{id}` for the submission.
     Failures are stored with their error and tried again on the next call; the caller commits."""
     counted = {c.submission.student_id: c for c in counted_grades(session=session, assignment=assignment)}
+    link_items = select(LtiLineItem.context_id).where(LtiLineItem.assignment_id == assignment.id)
     contexts = session.scalars(select(LtiContext).join(LtiRegistration)
                                .where(LtiRegistration.course_id == assignment.course_id,
-                                      LtiContext.lineitems_url.is_not(None)).order_by(LtiContext.id))
+                                      LtiContext.lineitems_url.is_not(None) | LtiContext.id.in_(link_items))
+                               .order_by(LtiContext.id))
     out: list[ScoreSent] = []
     for context in contexts:
         people = session.scalars(select(LtiIdentity).where(LtiIdentity.registration_id == context.registration_id)
@@ -459,13 +617,22 @@ def send_scores(*, session: Session, assignment: Assignment, report_url: str = "
     return out
 
 
+def token_scopes(offered: list[str], *, line_item_known: bool) -> list[str]:
+    """The AGS scopes a token is asked for: only what the tool uses of what the platform offered. Scores always; the
+    line item scope only while the assignment's column must still be found or created (read-only where that is all
+    that is offered); never results, which the tool does not read."""
+    wanted = [SCORE_SCOPE]
+    if not line_item_known:
+        wanted.append(LINEITEM_SCOPE if LINEITEM_SCOPE in offered else LINEITEM_READ_SCOPE)
+    return [scope for scope in wanted if scope in offered]
+
+
 def _send_context(session: Session, context: LtiContext, assignment: Assignment, due, report_url: str):
-    service_data = {"scope": context.scopes, "lineitems": context.lineitems_url}
-    connector = ServiceConnector(RegistrationConf(session).library_registration(context.registration),
-                                 requests_session=FetchSession())
-    ags = AssignmentsGradesService(connector, service_data)
     item = session.scalar(select(LtiLineItem).where(LtiLineItem.context_id == context.id,
                                                     LtiLineItem.assignment_id == assignment.id))
+    service_data = {"scope": token_scopes(context.scopes or [], line_item_known=item is not None),
+                    "lineitems": context.lineitems_url}
+    ags = AssignmentsGradesService(_connector(session, context.registration), service_data)
     out, unreachable = [], None
     for identity, c in due:
         prior = None if item is None else session.scalar(
@@ -491,8 +658,8 @@ def _send_context(session: Session, context: LtiContext, assignment: Assignment,
                           .set_grading_progress("FullyGraded").set_user_id(identity.sub).set_comment(comment),
                           LineItem().set_id(item.url))
             status, error = "sent", None
-        except (LtiException, LtiServiceException, requests.RequestException, KeyError, ValueError) as exc:
-            status, error = "failed", str(exc)[:1000]
+        except (LtiException, requests.RequestException, AttributeError, KeyError, TypeError, ValueError) as exc:
+            status, error = "failed", failure_text(exc)[:1000]
             if isinstance(exc, requests.RequestException):
                 unreachable = exc
         out.append(ScoreSent(identity.user.name, context.context_id, status, c.counted, error))
@@ -528,15 +695,18 @@ def sync_roster(*, session: Session, course: Course) -> RosterSync:
         raise Conflict("no LMS course of this course offered its roster yet: launch the tool from the LMS first")
     added, updated, dropped, unchanged, listed = [], [], [], 0, set()
     for context in contexts:
-        connector = ServiceConnector(RegistrationConf(session).library_registration(context.registration),
-                                     requests_session=FetchSession())
         try:
             members = NamesRolesProvisioningService(
-                connector, {"context_memberships_url": context.memberships_url}).get_members()
-        except (LtiException, LtiServiceException, requests.RequestException, KeyError, ValueError) as exc:
-            raise Conflict(f"the LMS roster of {context.context_id} could not be read: {str(exc)[:300]}") from exc
+                _connector(session, context.registration),
+                {"context_memberships_url": context.memberships_url}).get_members()
+        except (LtiException, requests.RequestException, AttributeError, KeyError, TypeError, ValueError) as exc:
+            raise Conflict(f"the LMS roster of {context.context_id} could not be read: "
+                           f"{failure_text(exc)}") from None
         for member in members:
+            if not isinstance(member, dict):
+                continue
             sub, roles = member.get("user_id"), member.get("roles") or []
+            roles = roles if isinstance(roles, list) else []
             if not isinstance(sub, str) or not 0 < len(sub) <= 255 or not any(r in LEARNER_ROLES for r in roles):
                 continue
             if member.get("status", "Active") != "Active":

@@ -203,9 +203,19 @@ class _Form(HTMLParser):
             self.fields = getattr(self, "fields", {}) | {attrs["name"]: attrs["value"]}
 
 
+def allow(monkeypatch, platform: Platform) -> None:
+    """The operator's settings that let the tool fetch from this platform on loopback over plain http: its port
+    only, so any other local server stays refused."""
+    from grader.settings import settings
+
+    monkeypatch.setattr(settings, "outbound_allow_http", True)
+    monkeypatch.setattr(settings, "outbound_allowed_hosts", [f"127.0.0.1:{platform.server.server_port}"])
+
+
 @pytest.fixture
-def platform(api):
+def platform(api, monkeypatch):
     lms = Platform()
+    allow(monkeypatch, lms)
     with _session() as session:
         from grader.models import Course
         from grader.services import lti
@@ -364,11 +374,12 @@ def test_a_token_signed_by_another_key_is_refused(api, platform):
     assert counts() == before
 
 
-@pytest.mark.parametrize("jwks", [{"not_keys": []}, {"keys": [{"kid": "other", "kty": "RSA"}]}])
-def test_a_platform_serving_broken_keys_gets_a_refusal_not_a_crash(api, platform, jwks):
+@pytest.mark.parametrize("jwks, field", [({"not_keys": []}, "key_set_url"), ({"keys": ["x"]}, "key_set_url"),
+                                         ({"keys": [{"kid": "other", "kty": "RSA"}]}, "id_token")])
+def test_a_platform_serving_broken_keys_gets_a_refusal_not_a_crash(api, platform, jwks, field):
     platform.jwks = jwks
     before = counts()
-    _refused(api, post_launch(api, launch_form(api, platform, "lms-user-17")), "id_token")
+    _refused(api, post_launch(api, launch_form(api, platform, "lms-user-17")), field)
     assert counts() == before
 
 
@@ -535,7 +546,8 @@ def test_a_failed_send_is_listed_and_tried_again(api, platform):
     graded_attempt(aid, "lms-user-17", 1, 6.0)
     platform.refuse_scores = True
     (failed,) = send(api, aid)
-    assert failed["status"] == "failed" and "503" in failed["error"]
+    assert failed["status"] == "failed" and failed["error"] == f"{platform.url}/lineitems/0/scores answered HTTP 503"
+    assert "gradebook down" not in json.dumps(failed)  # the platform's body reaches no answer
     platform.refuse_scores = False
     assert [s["status"] for s in send(api, aid)] == ["sent"]
     assert platform.line_items[0]["scores"]["lms-user-17"]["scoreGiven"] == 6.0

@@ -123,7 +123,8 @@ def test_a_refused_send_backs_off_shows_on_the_page_and_the_retry_delivers(api, 
     api.client.post("/sign-in", data={"token": api.tokens["prof"]})
     page = api.client.get("/courses/l03/lti")
     assert page.status_code == 200
-    assert 'id="outbox-%d"' % aid in page.text and "gradebook down" in page.text and "failed" in page.text
+    assert 'id="outbox-%d"' % aid in page.text and "answered HTTP 503" in page.text and "failed" in page.text
+    assert "gradebook down" not in page.text and "gradebook down" not in row.last_error  # the platform's body: never
     assert "Scores the LMS has not received" in page.text
     assert "grader_lti_sends_failing 1.0" in api.client.get("/metrics").text  # the operator sees it too
     # Still down at the next try: the wait doubles.
@@ -136,7 +137,7 @@ def test_a_refused_send_backs_off_shows_on_the_page_and_the_retry_delivers(api, 
     assert gradebook(platform) == {STUDENT: 6.0}
     assert (outbox(aid).attempts, outbox(aid).last_error) == (0, None)
     page = api.client.get("/courses/l03/lti")
-    assert "gradebook down" not in page.text and 'id="nothing-due"' in page.text
+    assert "answered HTTP 503" not in page.text and 'id="nothing-due"' in page.text
     assert "grader_lti_sends_failing 0.0" in api.client.get("/metrics").text
 
 
