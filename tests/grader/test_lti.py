@@ -109,6 +109,7 @@ class Platform:
         self.line_items: list[dict] = []  # the gradebook: each line item with the scores it received, by user
         self.refuse_scores = False  # the next score posts answer 503
         self.members: list[dict] = []  # the LMS course's roster (NRPS)
+        self.token_scopes: list[str] = []  # the scope of each token request the tool made
         platform = self
 
         class Handler(BaseHTTPRequestHandler):
@@ -151,6 +152,7 @@ class Platform:
                 raw = self.rfile.read(int(self.headers.get("Content-Length", 0))).decode()
                 path = urlsplit(self.path).path
                 if path == "/token":
+                    platform.token_scopes.append(dict(parse_qsl(raw)).get("scope", ""))
                     conf = platform.conf()
                     conf.get_registration().set_tool_key_set(platform.tool_jwks)
                     return self._answer(200, conf.get_access_token(dict(parse_qsl(raw))))
@@ -537,6 +539,43 @@ def test_counted_scores_reach_the_platforms_gradebook_once_per_change(api, platf
     graded_attempt(aid, "lms-user-17", 2, 9.0)  # the latest attempt counts
     assert [(s["status"], s["score"]) for s in send(api, aid)] == [("sent", 9.0)]
     assert len(platform.line_items) == 1 and platform.line_items[0]["scores"]["lms-user-17"]["scoreGiven"] == 9.0
+    # Tokens ask only for what the tool uses of the scopes the platform offered (result.readonly among them): the
+    # line item scope while its column must be found or made, then scores alone.
+    assert RESULT_SCOPE in launched_scopes(platform)
+    assert platform.token_scopes == [f"{LINEITEM_SCOPE} {SCORE_SCOPE}", SCORE_SCOPE]
+
+
+SCORE_SCOPE = "https://purl.imsglobal.org/spec/lti-ags/scope/score"
+LINEITEM_SCOPE = "https://purl.imsglobal.org/spec/lti-ags/scope/lineitem"
+RESULT_SCOPE = "https://purl.imsglobal.org/spec/lti-ags/scope/result.readonly"
+AGS_CLAIM = "https://purl.imsglobal.org/spec/lti-ags/claim/endpoint"
+
+
+def launched_scopes(platform: Platform) -> list[str]:
+    from grader.models import LtiContext
+
+    with _session() as session:
+        (context,) = session.scalars(select(LtiContext)).all()
+        return context.scopes
+
+
+def test_a_links_own_line_item_gets_its_scores(api, platform):
+    """A launch whose AGS claim names the link's line item (the LMS made one column for the link): that column gets
+    the assignment's scores, with a token for scores alone; the tool makes no second column."""
+    platform.tool_jwks = api.client.get("/lti/jwks").json()
+    aid = create(api, title="Lab 3 checkpoints").json()["id"]
+    platform.links["link-1"] = {"assignment_id": str(aid)}
+    platform.line_items.append({"id": f"{platform.url}/lineitems/0", "label": "Lab 3 (the LMS's column)",
+                                "scoreMaximum": 10, "scores": {}})
+    platform.override = {AGS_CLAIM: {"scope": [LINEITEM_SCOPE, RESULT_SCOPE, SCORE_SCOPE],
+                                     "lineitems": f"{platform.url}/lineitems",
+                                     "lineitem": f"{platform.url}/lineitems/0"}}
+    assert post_launch(api, launch_form(api, platform, "lms-user-17")).status_code == 200
+    graded_attempt(aid, "lms-user-17", 1, 6.5)
+    assert [(s["status"], s["score"]) for s in send(api, aid)] == [("sent", 6.5)]
+    (item,) = platform.line_items
+    assert item["scores"]["lms-user-17"]["scoreGiven"] == 6.5
+    assert platform.token_scopes == [SCORE_SCOPE]
 
 
 def test_a_failed_send_is_listed_and_tried_again(api, platform):

@@ -60,7 +60,9 @@ def stack(tmp_path_factory, kernel_cache_filled):
                    CASE_TIME_LIMIT_S="600", PYTHONPATH=str(services.ROOT),
                    # One session submits as alice far more often than a student would; the limit and the cap on a
                    # student's waiting runs have their own tests (test_hostile_input, test_fair_queues).
-                   RATE_LIMIT_SUBMISSIONS="1000/minute", STUDENT_WAITING_RUNS_MAX="1000")
+                   RATE_LIMIT_SUBMISSIONS="1000/minute", STUDENT_WAITING_RUNS_MAX="1000",
+                   # The LMS of test_lti_platform serves on loopback over plain http (grader.core.outbound).
+                   OUTBOUND_ALLOW_HTTP="true", OUTBOUND_ALLOWED_HOSTS="127.0.0.1")
         env |= services.private_kernel_cache(data_dir)  # test_recovery SIGKILLs this stack's case processes
         port = services.free_port()
         api = services.start_api(env, port, logs / "api.log")
