@@ -44,6 +44,15 @@ def require_instructor(user: User, *, action: str) -> None:
     require_role(user, Role.INSTRUCTOR, action=action)
 
 
+def require_course_instructor(user: User, course_id: int, *, action: str, thing: str = "course") -> None:
+    """For every change a set-up service makes, checked by the service itself (not only by the page or API
+    dependency in front of it): NotFound for anyone outside the course (never confirming what exists), Forbidden for
+    a student or an auditor of it."""
+    if user.course_id != course_id:
+        raise NotFound(f"{thing} not found")
+    require_instructor(user, action=action)
+
+
 def own_course(*, session: Session, user: User, name: str) -> Course:
     """The caller's course by name; NotFound for any other course (another course's name is never confirmed)."""
     course = session.scalar(select(Course).where(Course.name == name))

@@ -21,7 +21,7 @@ from grader.core.timezones import iso, local
 from grader.models import Assignment, Course, Extension, Grade, Submission, User, utcnow
 from grader.schemas import AssignmentCreate, CountedGradePublic, ExtensionCreate
 from grader.services import course_changes
-from grader.services.access import MAX_ID
+from grader.services.access import MAX_ID, require_course_instructor
 from grader.services.course_changes import ChangeKind
 from grader.services.errors import Conflict, Invalid, NotFound, Refused
 from rubric import load_rubric
@@ -246,7 +246,9 @@ def checked_extension(raw: dict) -> dict:
 
 def create(*, session: Session, course: Course, user: User, fields: dict) -> Assignment:
     """Store a new assignment of the course (fields validated by grader.schemas.AssignmentCreate); Invalid naming
-    each per-item visibility that names no item of the assignment. Recorded with who created it. Commits."""
+    each per-item visibility that names no item of the assignment. Recorded with who created it. NotFound outside
+    the course, Forbidden for anyone but its instructors (checked here, whichever door called). Commits."""
+    require_course_instructor(user, course.id, action="create an assignment", thing=f"course {course.name!r}")
     if strangers := _strangers(fields["lesson"], fields["part"], fields.get("item_visibility")):
         raise Invalid("invalid assignment", strangers)
     assignment = Assignment(course_id=course.id, created_by_id=user.id, **fields)
@@ -269,7 +271,10 @@ def update(*, session: Session, assignment: Assignment, by: User, fields: dict) 
     nothing, recorded with the values before and after. Once students have submitted, its lesson and part are
     fixed (Conflict naming the field): each submission's sheet answers exactly the items they select. Every other
     setting may change: late policy, counted attempt and visibility apply to the attempts already graded too, while
-    each attempt keeps the lateness it was admitted with. Commits (nothing when nothing changed)."""
+    each attempt keeps the lateness it was admitted with. NotFound outside the course, Forbidden for anyone but its
+    instructors. Commits (nothing when nothing changed)."""
+    require_course_instructor(by, assignment.course_id, action="edit an assignment",
+                              thing=f"assignment {assignment.id}")
     if strangers := _strangers(fields["lesson"], fields["part"], fields.get("item_visibility")):
         raise Invalid("invalid assignment", strangers)
     changed = {k: [getattr(assignment, k), v] for k, v in fields.items() if getattr(assignment, k) != v}
@@ -317,7 +322,10 @@ def _plain(value):
 
 def release(*, session: Session, assignment: Assignment, by: User) -> Assignment:
     """Show the assignment's withheld (on_release) scores and feedback to its students; nothing is regraded. Releasing
-    again keeps the first release time (and records nothing). Commits."""
+    again keeps the first release time (and records nothing). NotFound outside the course, Forbidden for anyone but
+    its instructors. Commits."""
+    require_course_instructor(by, assignment.course_id, action="release an assignment",
+                              thing=f"assignment {assignment.id}")
     if assignment.released_at is None:
         assignment.released_at = utcnow()
         scores_changed(session=session, assignment=assignment)  # the withheld scores may now go to the LMS
@@ -345,7 +353,9 @@ def extension_of(*, session: Session, assignment: Assignment, student: User) -> 
 def grant_extension(*, session: Session, assignment: Assignment, student_name: str, due_at: datetime,
                     hard_close_at: datetime, user: User) -> Extension:
     """Give one student their own due date and hard close (replaces an earlier one); Invalid for an unknown student.
-    Recorded with who granted it. Commits."""
+    Recorded with who granted it. NotFound outside the course, Forbidden for anyone but its instructors. Commits."""
+    require_course_instructor(user, assignment.course_id, action="grant an extension",
+                              thing=f"assignment {assignment.id}")
     student = _student(session=session, assignment=assignment, student_name=student_name)
     ext = extension_of(session=session, assignment=assignment, student=student)
     tz = assignment.course.timezone
@@ -367,7 +377,10 @@ def grant_extension(*, session: Session, assignment: Assignment, student_name: s
 
 def revoke_extension(*, session: Session, assignment: Assignment, student_name: str, by: User) -> None:
     """Take a student's extension away: the assignment's own dates apply to them again (their attempts keep the
-    lateness they were admitted with). Invalid naming `student` when they have none. Recorded. Commits."""
+    lateness they were admitted with). Invalid naming `student` when they have none. NotFound outside the course,
+    Forbidden for anyone but its instructors. Recorded. Commits."""
+    require_course_instructor(by, assignment.course_id, action="revoke an extension",
+                              thing=f"assignment {assignment.id}")
     student = _student(session=session, assignment=assignment, student_name=student_name)
     ext = extension_of(session=session, assignment=assignment, student=student)
     if ext is None:

@@ -9,6 +9,7 @@ from sqlalchemy.orm import Session
 from grader.core.timezones import is_zone
 from grader.models import Course, User
 from grader.services import course_changes
+from grader.services.access import require_course_instructor
 from grader.services.course_changes import ChangeKind
 from grader.services.errors import Invalid
 
@@ -16,7 +17,9 @@ from grader.services.errors import Invalid
 def update_settings(*, session: Session, course: Course, by: User, timezone: str | None = None,
                     free_submissions: bool | None = None) -> Course:
     """Change the settings given (None keeps one): all or nothing, Invalid naming the field for an unknown zone; a
-    change is recorded with who made it. Commits."""
+    change is recorded with who made it. NotFound outside the course, Forbidden for anyone but its instructors.
+    Commits."""
+    require_course_instructor(by, course.id, action="change a course's settings", thing=f"course {course.name!r}")
     if timezone is not None and not is_zone(timezone):
         raise Invalid("invalid course settings", [{"field": "timezone", "rule": (
             f"{timezone!r} is not an IANA time zone name (e.g. UTC, Europe/Berlin, America/New_York)")}])
