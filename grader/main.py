@@ -9,7 +9,7 @@ from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
 
-from grader.api import errors
+from grader.api import errors, logs
 from grader.api.admission import BodyDeadline, ClientLimit, InFlightLimit, lifespan
 from grader.api.headers import SecurityHeaders, docs_policy
 from grader.api.main import api_router
@@ -49,6 +49,8 @@ def swagger_ui() -> HTMLResponse:
     page.headers["Content-Security-Policy"] = docs_policy(inline)
     return page
 
+
+logs.install()  # no sign-in link's secret in the access log, whichever server runs the app
 
 # Outermost last: headers on every answer; then the per-client cap; then the whole body within its deadline; only
 # then an admission slot; then grader.api.errors' BodyGuard checks the body.

@@ -84,6 +84,13 @@ class Settings(BaseSettings):
     sign_in_link_days: int = Field(14, ge=1, le=365)
     # Per staff member, audit re-runs asked for (each queues a fresh Genesis run that no reuse can shorten).
     rate_limit_audit_reruns: str = "20/hour"
+    # Per person, counted at every door (grader.services.quotas): draft saves (the sheet form saves as the student
+    # types, about one a second at most), review requests, and per client address failed sign-ins (wrong tokens) and
+    # look-ups of unknown sign-in links (guessing), which a correct sign-in or link never spends.
+    rate_limit_draft_saves: str = "120/minute"
+    rate_limit_review_requests: str = "20/hour"
+    rate_limit_sign_in_failures: str = "20/10 minutes"
+    rate_limit_link_guesses: str = "20/10 minutes"
     # Case runs one student may have waiting or running at once (a whole sheet queues at most 9).
     student_waiting_runs_max: int = Field(27, ge=1)
     # The service's public URL (https://grader.example.edu): the report link in the comment of each score the
@@ -104,7 +111,8 @@ class Settings(BaseSettings):
     # memory, each process would count its own share of every token's submissions.
     api_workers: int = Field(1, ge=1, le=64)
 
-    @field_validator("rate_limit_submissions", "rate_limit_audit_reruns")
+    @field_validator("rate_limit_submissions", "rate_limit_audit_reruns", "rate_limit_draft_saves",
+                     "rate_limit_review_requests", "rate_limit_sign_in_failures", "rate_limit_link_guesses")
     @classmethod
     def _a_rate_limit(cls, value: str) -> str:
         parse(value)  # raises ValueError naming the bad notation

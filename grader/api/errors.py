@@ -8,11 +8,12 @@ from collections.abc import Callable
 
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse, Response
+from fastapi.responses import JSONResponse, PlainTextResponse, Response
 from fastapi.routing import iter_route_contexts
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from grader.api.bodies import MAX_ERRORS, BodyGuard
+from grader.api.headers import secure
 from grader.services.errors import Conflict, DomainError, Forbidden, Invalid, NotFound, Refused
 
 API_PREFIX = "/v1"
@@ -70,18 +71,39 @@ def status_of(exc: DomainError) -> int:
     return 400
 
 
+def retry_after(exc: DomainError) -> dict[str, str] | None:
+    """Retry-After for a refusal that waiting lifts (a quota, an hourly limit), on the API's answer and a page's."""
+    return {"Retry-After": str(exc.retry_after_s)} if isinstance(exc, Refused) and exc.retry_after_s else None
+
+
+def with_retry_after(response: Response, exc: DomainError) -> Response:
+    response.headers.update(retry_after(exc) or {})
+    return response
+
+
 def _domain_handler(page_error: Callable[[Request, DomainError, int], Response] | None):
     async def handle(request: Request, exc: DomainError) -> Response:
         code = status_of(exc)
         if page_error is not None and not request.url.path.startswith(API_PREFIX):
-            return page_error(request, exc, code)
-        headers = {"Retry-After": str(exc.retry_after_s)} if isinstance(exc, Refused) and exc.retry_after_s else None
-        return error(code, exc.detail, exc.errors, headers=headers)
+            return with_retry_after(page_error(request, exc, code), exc)
+        return error(code, exc.detail, exc.errors, headers=retry_after(exc))
     return handle
+
+
+async def _internal(request: Request, exc: Exception) -> Response:
+    """A bug's 500 (Starlette's ServerErrorMiddleware logs the traceback): no detail of it, and the security headers
+    every other answer has, since this one is sent outside the middleware that adds them."""
+    if request.url.path.startswith(API_PREFIX):
+        response: Response = error(500, "internal error; it was logged")
+    else:
+        response = PlainTextResponse("Internal error; it was logged. Try again, or tell the course staff.", 500)
+    secure(response.headers, request.url.path)
+    return response
 
 
 def install(app: FastAPI, *, max_bytes: int, max_depth: int,
             page_error: Callable[[Request, DomainError, int], Response] | None = None) -> None:
+    app.add_exception_handler(Exception, _internal)
     app.add_exception_handler(DomainError, _domain_handler(page_error))
     app.add_exception_handler(RequestValidationError, _validation)
     app.add_exception_handler(StarletteHTTPException, _http)

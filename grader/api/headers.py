@@ -29,8 +29,18 @@ def docs_policy(inline_script: str) -> str:
             "img-src 'self' data:; object-src 'none'; base-uri 'none'; form-action 'self'; frame-ancestors 'none'")
 
 
+def secure(headers: MutableHeaders, path: str) -> None:
+    """The headers above on one answer (its own Content-Security-Policy and Cache-Control kept)."""
+    for name, value in HEADERS.items():
+        headers[name] = value
+    headers.setdefault("Content-Security-Policy", PAGE_POLICY)
+    if not path.startswith(STATIC_PREFIX):
+        headers.setdefault("Cache-Control", "private, no-store")
+
+
 class SecurityHeaders:
-    """ASGI middleware adding the headers above to each HTTP answer's start."""
+    """ASGI middleware adding the headers above to each HTTP answer's start. An unhandled error's 500 is answered
+    outside every middleware (Starlette's ServerErrorMiddleware): grader.api.errors' handler of it calls `secure`."""
 
     def __init__(self, app):
         self.app = app
@@ -38,17 +48,10 @@ class SecurityHeaders:
     async def __call__(self, scope, receive, send):
         if scope["type"] != "http":
             return await self.app(scope, receive, send)
-        static = scope["path"].startswith(STATIC_PREFIX)
-
         async def send_with_headers(message):
             if message["type"] == "http.response.start":
                 message.setdefault("headers", [])
-                headers = MutableHeaders(scope=message)
-                for name, value in HEADERS.items():
-                    headers[name] = value
-                headers.setdefault("Content-Security-Policy", PAGE_POLICY)
-                if not static:
-                    headers.setdefault("Cache-Control", "private, no-store")
+                secure(MutableHeaders(scope=message), scope["path"])
             await send(message)
 
         await self.app(scope, receive, send_with_headers)

@@ -63,10 +63,14 @@ def sign_in_form(request: Request, user: PageUser, next: str = "/submissions"):
 
 @router.post("/sign-in", response_class=HTMLResponse)
 def sign_in(request: Request, session: SessionDep, token: str = Form(""), next: str = Form("/submissions")):
-    """Opens a page session for a working token; the cookie gets the session's secret, never the token."""
+    """Opens a page session for a working token; the cookie gets the session's secret, never the token. Wrong tokens
+    are counted per client address, and past settings.rate_limit_sign_in_failures refused (429) before any look-up."""
+    address = request.client.host if request.client else "unknown"
+    sessions.refuse_failing_address(address)
     row = accounts.find_token(session=session, token=token.strip())
     refusal = accounts.token_refusal(row)
     if refusal is not None:
+        sessions.count_failed_sign_in(address)
         error = "That token is unknown or has been revoked." if row is None else f"That {refusal}."
         return _sign_in_page(request, None, next, error, status.HTTP_401_UNAUTHORIZED)
     if request.cookies.get(COOKIE):  # a session this browser held before ends with the new one

@@ -16,13 +16,13 @@ from starlette.datastructures import FormData
 from grader import dispatch
 from grader.i18n import N_
 from grader.api.deps import SessionDep
-from grader.api.errors import status_of
+from grader.api.errors import status_of, with_retry_after
 from grader.core.rubrics import course_rubric
 from grader.core.states import Role
 from grader.models import Assignment, User, utcnow
 from grader.pages.auth import SignedIn
 from grader.pages.templates import TEMPLATES
-from grader.services import assignments, drafts, submissions
+from grader.services import assignments, drafts, sheets, submissions
 from grader.services import sheet_form as form_logic
 from grader.services.errors import DomainError, Invalid, NotFound, Refused
 
@@ -49,8 +49,13 @@ MembersAssignment = Annotated[Assignment, Depends(_members_assignment)]
 
 
 async def _posted_form(request: Request) -> FormData:
-    # Read here, in the event loop, so that the handlers stay plain functions on the thread pool, as every page's.
-    return await request.form()
+    """The posted fields, all text: a file part where the form has a text input is refused naming the field (422).
+    Read here, in the event loop, so that the handlers stay plain functions on the thread pool, as every page's."""
+    form = await request.form()
+    files = [name for name, value in form.multi_items() if not isinstance(value, str)]
+    if files:
+        raise Invalid("invalid form", [{"field": name, "rule": "must be text, not a file"} for name in files[:20]])
+    return form
 
 
 Posted = Annotated[FormData, Depends(_posted_form)]
@@ -99,7 +104,8 @@ def _render(request: Request, session, user: User, assignment: Assignment | None
     checks = []
     if checked and book_configs is not None:
         checks, config_errors = form_logic.config_checks(session=session, sheet=sheet, part=part, book=book)
-        errors = (errors or []) + [e for e in config_errors if e not in (errors or [])]
+        shown = {(e["field"], e["rule"]) for e in errors or []}  # a set: one pass, whatever the number of errors
+        errors = (errors or []) + [e for e in config_errors if (e["field"], e["rule"]) not in shown]
     names = (["file", "student"] + [i.name for item in items for i in item.inputs]
              + [i.name for inputs in configs.values() for i in inputs])
     placed, unplaced = form_logic.by_input(errors or [], names)
@@ -116,10 +122,14 @@ def _render(request: Request, session, user: User, assignment: Assignment | None
 
 
 def _posted_sheet(session, user: User, assignment: Assignment | None, form) -> dict:
+    """The sheet the posted form holds over the saved draft. Invalid naming the path when the saved draft is past the
+    caps (grader.services.sheets.size_problems: one saved before they held, or a key the form cannot name): a YAML
+    import, or starting from the last submission, replaces it."""
     part, lesson = _part_and_lesson(assignment)
     book = course_rubric(session, user.course_id, lesson)
     items = form_logic.item_forms(book, assignments.item_ids(lesson, part))
     previous = _draft_sheet(session, user, assignment)
+    sheets.check_size(previous, detail="your saved draft cannot be edited in the form; import a corrected YAML")
     sheet = form_logic.sheet_from_form(form, items=items, book=book if form_logic.has_configs(part) else None,
                                        previous=previous)
     sheet["lesson"] = lesson
@@ -174,8 +184,8 @@ def _confirmed(request: Request, session, user: User, assignment: Assignment | N
         raise
     except DomainError as exc:  # the rule beside the form; the draft stays as it was
         session.rollback()
-        return _render(request, session, user, assignment, sheet, errors=exc.errors, refusal=exc,
-                       code=status_of(exc), checked=True)
+        return with_retry_after(_render(request, session, user, assignment, sheet, errors=exc.errors, refusal=exc,
+                                        code=status_of(exc), checked=True), exc)
     return RedirectResponse(f"/submissions/{submission.id}/progress", status_code=status.HTTP_303_SEE_OTHER)
 
 
@@ -190,8 +200,15 @@ def _act(request: Request, session, user: User, assignment: Assignment | None, f
         drafts.save(session=session, user=user, assignment=assignment, sheet=last.sheet)
         return _render(request, session, user, assignment, last.sheet,
                        notice=f"The draft now holds your submission {last.id}'s sheet.")
-    sheet = _posted_sheet(session, user, assignment, form)
-    drafts.save(session=session, user=user, assignment=assignment, sheet=sheet)
+    sheet = None
+    try:
+        sheet = _posted_sheet(session, user, assignment, form)
+        drafts.save(session=session, user=user, assignment=assignment, sheet=sheet)
+    except Invalid as exc:  # past a cap or the saves' quota: the rule above the form, the saved draft as it was
+        session.rollback()
+        shown = sheet if sheet is not None else _draft_sheet(session, user, assignment)
+        return with_retry_after(_render(request, session, user, assignment, shown, errors=exc.errors, refusal=exc,
+                                        code=status_of(exc)), exc)
     part, _ = _part_and_lesson(assignment)
     if action == "export":
         name = f"sheet-{assignment.id}.yaml" if assignment is not None else "sheet.yaml"
@@ -204,8 +221,8 @@ def _act(request: Request, session, user: User, assignment: Assignment | None, f
     if action == "submit":  # first the confirmation; a submission it would refuse says the rule beside the form
         refusal = _precheck(session, user, assignment, sheet)
         if refusal is not None:
-            return _render(request, session, user, assignment, sheet, errors=refusal.errors, refusal=refusal,
-                           code=status_of(refusal), checked=True)
+            return with_retry_after(_render(request, session, user, assignment, sheet, errors=refusal.errors,
+                                            refusal=refusal, code=status_of(refusal), checked=True), refusal)
         return _confirmation(request, session, user, assignment, sheet)
     return _render(request, session, user, assignment, sheet, notice="Draft saved.")
 
@@ -229,10 +246,15 @@ def _import(request: Request, session, user: User, assignment: Assignment | None
             exc = Invalid("invalid YAML", [{"field": "file", "rule": "must be UTF-8 text"}])
         except Invalid as refused:
             exc = refused
+    if exc is None:
+        try:
+            drafts.save(session=session, user=user, assignment=assignment, sheet=sheet)
+        except Invalid as refused:  # the saves' quota
+            session.rollback()
+            exc = refused
     if exc is not None:  # the draft stays as it was
-        return _render(request, session, user, assignment, _draft_sheet(session, user, assignment),
-                       errors=exc.errors, refusal=exc, code=status_of(exc))
-    drafts.save(session=session, user=user, assignment=assignment, sheet=sheet)
+        return with_retry_after(_render(request, session, user, assignment, _draft_sheet(session, user, assignment),
+                                        errors=exc.errors, refusal=exc, code=status_of(exc)), exc)
     return _render(request, session, user, assignment, sheet,
                    notice=f"Imported {file.filename or 'the file'} into the draft; check it before submitting.")
 

@@ -1,5 +1,7 @@
 """A student's sign-in link: GET shows a confirmation with one button (mail clients' link scanners follow GETs and
-must not use up the link), POST uses the link once and opens the same page session the sign-in form opens."""
+must not use up the link), POST uses the link once and opens the same page session the sign-in form opens. Both
+count a look-up of an unknown link against the client's address (grader.services.sign_in_links.look_up): past the
+quota, the refusal page with Retry-After (429)."""
 
 from __future__ import annotations
 
@@ -19,6 +21,11 @@ def _page(request: Request, user, link, refusal: str | None, code: int = status.
         "user": user, "link": link, "refusal": refusal, "action": request.url.path}, status_code=code)
 
 
+def client_address(request: Request) -> str:
+    """The client's address as uvicorn gives it (behind a proxy: from X-Forwarded-For, --forwarded-allow-ips)."""
+    return request.client.host if request.client else "unknown"
+
+
 def _refused_code(link) -> int:
     # 404 for a link never issued; 410 for one that existed and no longer works.
     return status.HTTP_404_NOT_FOUND if link is None else status.HTTP_410_GONE
@@ -27,7 +34,7 @@ def _refused_code(link) -> int:
 @router.get("/sign-in/link/{secret}", response_class=HTMLResponse)
 def confirm(request: Request, secret: str, session: SessionDep, user: PageUser):
     """Says whom the link signs in and asks for one press; nothing is used up here."""
-    link = sign_in_links.find(session=session, secret=secret)
+    link = sign_in_links.look_up(session=session, secret=secret, address=client_address(request))
     refusal = sign_in_links.refusal(link)
     return _page(request, user, link, refusal, _refused_code(link) if refusal else status.HTTP_200_OK)
 
@@ -35,7 +42,7 @@ def confirm(request: Request, secret: str, session: SessionDep, user: PageUser):
 @router.post("/sign-in/link/{secret}", response_class=HTMLResponse)
 def use(request: Request, secret: str, session: SessionDep, user: PageUser):
     """Uses the link (once) and signs this browser in: the cookie gets a new session's secret, never the link's."""
-    used = sign_in_links.redeem(session=session, secret=secret)
+    used = sign_in_links.redeem(session=session, secret=secret, address=client_address(request))
     if used.refusal is not None:
         link = sign_in_links.find(session=session, secret=secret)
         return _page(request, user, link, used.refusal, _refused_code(link))

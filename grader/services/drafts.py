@@ -1,4 +1,5 @@
-"""Drafts: a student's unsent sheet for an assignment (or their free sheet), kept on the server as they type."""
+"""Drafts: a student's unsent sheet for an assignment (or their free sheet), kept on the server as they type, within
+the sheet's caps (grader.services.sheets) and the person's draft-save quota (settings.rate_limit_draft_saves)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from grader.models import Assignment, Draft, Submission, User, utcnow
+from grader.services import quotas, sheets
+from grader.settings import settings
 
 
 def _query(user: User, assignment: Assignment | None):
@@ -20,8 +23,12 @@ def load(*, session: Session, user: User, assignment: Assignment | None) -> Draf
 
 
 def save(*, session: Session, user: User, assignment: Assignment | None, sheet: dict) -> Draft:
-    """Store the sheet as the user's draft (replacing the one before); commits. Two saves racing to create it:
-    the database keeps one row (unique per user and assignment) and the later save writes into it."""
+    """Store the sheet as the user's draft (replacing the one before); commits. Refused (429 with Retry-After) past
+    the person's draft-save quota, Invalid naming the path for a sheet past the caps; nothing is stored then. Two
+    saves racing to create it: the database keeps one row (unique per user and assignment) and the later save writes
+    into it."""
+    quotas.take("draft saves", user.id, settings.rate_limit_draft_saves, field="draft")
+    sheets.check_size(sheet)
     draft = load(session=session, user=user, assignment=assignment)
     if draft is None:
         draft = Draft(user_id=user.id, assignment_id=assignment.id if assignment else None, sheet=sheet)

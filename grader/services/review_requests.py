@@ -18,10 +18,12 @@ from sqlalchemy.orm import Session
 from grader.core.states import Role
 from grader.models import ReviewRequest, Submission, User, utcnow
 from grader.schemas import UtcDateTime
+from grader.services import quotas
 from grader.services.access import MAX_ID, require_instructor
 from grader.services.errors import Conflict, Forbidden, Invalid, NotFound
 from grader.services.overrides import MAX_COMMENT, set_override
 from grader.services.visibility import grade_view
+from grader.settings import settings
 
 MAX_MESSAGE = 2000
 STATES = ("open", "answered", "all")
@@ -70,11 +72,14 @@ def ask(*, session: Session, submission: Submission, user: User, item_id: str, m
     """A student asks for a review of one item of their own graded submission (commits).
 
     NotFound for another student's or course's submission, Forbidden for staff, Conflict while it is not graded, Invalid naming the
-    field for an item not shown to them or an empty message, Conflict naming the rule for a second open request."""
+    field for an item not shown to them or an empty message, Conflict naming the rule for a second open request;
+    Refused (429 with Retry-After) past the student's quota (settings.rate_limit_review_requests, every door)."""
     if submission.course_id != user.course_id or (user.role == Role.STUDENT and submission.student_id != user.id):
         raise NotFound(f"submission {submission.id} not found")
     if user.role != Role.STUDENT:
         raise Forbidden(f"only students may ask for a review; you are signed in as {user.role} {user.name}")
+    quotas.take("review requests", user.id, settings.rate_limit_review_requests, field="review_requests",
+                per="student")
     view = grade_view(session=session, submission=submission, user=user, now=now)
     if view.stored is None:
         raise Conflict(f"submission {submission.id} is {submission.status}, not graded: nothing to review yet")

@@ -187,7 +187,9 @@ def _get(data: Any, path: str) -> Any:
 def _put(data: dict, path: str, value: Any) -> None:
     keys = path.split(".")
     for key in keys[:-1]:
-        data = data.setdefault(key, {})
+        if not isinstance(data.get(key), dict):  # never a 500: a path through a value (the caps refuse such keys)
+            data[key] = {}
+        data = data[key]
     data[keys[-1]] = value
 
 
@@ -311,17 +313,28 @@ def problems(sheet: dict, part: str) -> list[dict[str, str]]:
 
 
 def by_input(errors: list[dict[str, str]], names: list[str]) -> tuple[dict[str, list[str]], list[dict[str, str]]]:
-    """Each error beside the input it names (the longest input name its field starts with); the rest unplaced."""
+    """Each error beside the input it names (the longest input name its field starts with, dot by dot); the rest
+    unplaced. Looked up in a set, path prefix by path prefix: linear in the errors, whatever the number of inputs."""
+    known = set(names)
     placed: dict[str, list[str]] = {}
     rest = []
     for error in errors:
-        path = error["field"].removeprefix("sheet.")
-        owner = max((n for n in names if path == n or path.startswith(n + ".")), key=len, default=None)
+        owner = _owner(error["field"].removeprefix("sheet."), known)
         if owner is None:
             rest.append(error)
         else:
             placed.setdefault(owner, []).append(error["rule"])
     return placed, rest
+
+
+def _owner(path: str, names: set[str]) -> str | None:
+    """The longest of `names` that is `path` or a dotted prefix of it."""
+    while path not in names:
+        cut = path.rfind(".")
+        if cut < 0:
+            return None
+        path = path[:cut]
+    return path
 
 
 @dataclass
@@ -422,6 +435,7 @@ def sheet_from_yaml(text: str) -> dict:
                                                                   "configs"}])
     if (why := _plain(data)) is not None:
         raise Invalid("invalid YAML", [{"field": "file", "rule": why}])
+    sheets.check_size(data, detail="invalid YAML")
     return data
 
 

@@ -1,6 +1,8 @@
 """Students' sign-in links: a random 256-bit secret in the link, only its sha256 stored; one live link per student
-(issuing another revokes the earlier), used once, within settings.sign_in_link_days. Using one opens the same
-page session the sign-in form opens (grader.services.sessions). The caller commits."""
+(issuing another revokes the earlier and ends the page sessions the earlier links opened), used once, within
+settings.sign_in_link_days. Using one opens the same page session the sign-in form opens (grader.services.sessions).
+Look-ups of unknown links are counted per client address (settings.rate_limit_link_guesses) and refused past it, so
+nobody can try secrets at speed. The caller commits."""
 
 from __future__ import annotations
 
@@ -15,21 +17,26 @@ from grader.core.security import hash_token
 from grader.core.states import Role
 from grader.core.timezones import local
 from grader.models import Course, SignInLink, User, utcnow
-from grader.services import course_changes, sessions
+from grader.services import course_changes, quotas, sessions
 from grader.services.course_changes import ChangeKind
-from grader.services.errors import Invalid
+from grader.services.access import require_instructor
+from grader.services.errors import Invalid, NotFound
 from grader.settings import settings
 
 PATH = "/sign-in/link/"
 
 
 def issue(*, session: Session, user: User) -> tuple[str, SignInLink]:
-    """A new link secret for a student, revoking any earlier link of theirs not yet used; the clear secret exists
-    only in this return value."""
+    """A new link secret for a student, revoking any earlier link of theirs not yet used and ending the page sessions
+    their used links opened (a re-issue says the earlier link may be in other hands); the clear secret exists only in
+    this return value."""
     if user.role != Role.STUDENT:
         rule = f"{user.name!r} is on the course staff: sign-in links are for students"
         raise Invalid("not a student", [{"field": "student", "rule": rule}])
     revoke_links(session=session, user_id=user.id)
+    used = list(session.scalars(select(SignInLink.used_at).where(SignInLink.user_id == user.id,
+                                                                 SignInLink.used_at.is_not(None))))
+    sessions.revoke_link_sessions(session=session, user_id=user.id, used_at=used)
     now = utcnow()
     secret = secrets.token_urlsafe(32)
     row = SignInLink(user_id=user.id, secret_hash=hash_token(secret), created_at=now,
@@ -48,7 +55,11 @@ def revoke_links(*, session: Session, user_id: int) -> int:
 
 def issue_for(*, session: Session, course: Course, student_name: str, by: User) -> tuple[str, SignInLink]:
     """Re-issue one student's link (the earlier one stops working), recorded with who issued it; Invalid for anyone
-    not a student of the course. Commits."""
+    not a student of the course; NotFound for someone outside the course and Forbidden for anyone but its
+    instructors (checked here, not only by the page or route). Commits."""
+    if by.course_id != course.id:
+        raise NotFound(f"course {course.name!r} not found")
+    require_instructor(by, action="issue a sign-in link")
     student = session.scalar(select(User).where(User.course_id == course.id, User.name == student_name))
     if student is None:
         raise Invalid("unknown student", [{"field": "student", "rule": f"no student {student_name!r} in this course"}])
@@ -62,6 +73,19 @@ def issue_for(*, session: Session, course: Course, student_name: str, by: User) 
 
 def find(*, session: Session, secret: str) -> SignInLink | None:
     return session.scalar(select(SignInLink).where(SignInLink.secret_hash == hash_token(secret))) if secret else None
+
+
+LINK_GUESSES = "unknown sign-in links"
+
+
+def look_up(*, session: Session, secret: str, address: str) -> SignInLink | None:
+    """The link of this secret, for a client at `address`: Refused (429 with Retry-After) while the address has used
+    up its look-ups of unknown links, and an unknown one counted against it (a known link, used or not, never is)."""
+    quotas.refuse_while_spent(LINK_GUESSES, address, settings.rate_limit_link_guesses, field="link")
+    row = find(session=session, secret=secret)
+    if row is None:
+        quotas.spend(LINK_GUESSES, address, settings.rate_limit_link_guesses)
+    return row
 
 
 def refusal(row: SignInLink | None, now: datetime | None = None) -> str | None:
@@ -91,10 +115,11 @@ class Redeemed:
     refusal: str | None = None
 
 
-def redeem(*, session: Session, secret: str) -> Redeemed:
-    """Uses the link and opens a page session. The link is marked used by one conditional update, so two requests
-    racing with the same link cannot both sign in."""
-    row = find(session=session, secret=secret)
+def redeem(*, session: Session, secret: str, address: str) -> Redeemed:
+    """Uses the link and opens a page session (look_up's count for `address` first). The link is marked used by one
+    conditional update, so two requests racing with the same link cannot both sign in; the session is opened at the
+    instant the link is marked used, which names it as this link's (sessions.revoke_link_sessions)."""
+    row = look_up(session=session, secret=secret, address=address)
     now = utcnow()
     why = refusal(row, now)
     if why is not None:
@@ -106,4 +131,4 @@ def redeem(*, session: Session, secret: str) -> Redeemed:
         session.rollback()
         why = refusal(find(session=session, secret=secret), now)
         return Redeemed(refusal=why or "This sign-in link was just used.")
-    return Redeemed(sessions.open_session(session=session, user=row.user), row.user)
+    return Redeemed(sessions.open_session(session=session, user=row.user, now=now), row.user)

@@ -1,5 +1,6 @@
 """Submissions: storing one with its case runs, taking one through its assignment's rules, listing what a user may
-read. The API's POST and the browser's submit both go through `submit`."""
+read. The API's POST and the browser's submit both go through `submit`, which counts the person's submission rate
+for every door."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from grader.core.audit import spec_key
 from grader.core.rubrics import course_rubric
 from grader.core.states import Backend, CaseRunState, Role
 from grader.models import Assignment, CaseRun, Course, Event, Submission, User, utcnow
-from grader.services import assignments, sheets
+from grader.services import assignments, quotas, sheets
 from grader.services.errors import Conflict, Forbidden, Invalid, Refused, field_errors
 from grader.services.sending import Sender
 from grader.settings import settings
@@ -62,14 +63,19 @@ def visible_submissions(*, session: Session, user: User, course: Course | None =
 def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id: int | None = None,
            backend: str | None = None, force_rerun: bool = False, sender: Sender) -> Submission:
     """Validate a sheet and its case configs, store the submission and its case runs in one transaction, then send
-    every case still to run (`sender`). Raises Forbidden (the role), Invalid (the sheet, the assignment) or Refused
-    (the assignment's rules), and nothing is stored then.
+    every case still to run (`sender`). Raises Forbidden (the role), Refused (the person's submission rate,
+    settings.rate_limit_submissions, counted for every door here; the assignment's rules), or Invalid (the sheet's
+    size, checked before any work; the sheet; the assignment), and nothing is stored then.
 
     A case with a stored measurement is finished at once; with none left to run only the grade task is sent, or a
     checkpoint sheet (the lesson's own cases only, the same for every student) is graded in this call. While one of
     its cases was never measured it is queued like any other, so no student loses a point to a gap."""
     if user.role not in (Role.STUDENT, Role.INSTRUCTOR):
         raise Forbidden(f"role {user.role} may not submit")
+    # Every door (the API, the sheet form, the command line through the API) counts here, before any work; a refused
+    # one is not counted. Refused -> 429 with Retry-After, the same rule on every door.
+    quotas.take("submissions", user.id, settings.rate_limit_submissions, field="submissions")
+    sheets.check_size(sheet)
     if assignment_id is None and user.role == Role.STUDENT and not user.course.free_submissions:
         raise Refused("assignment_id", f"course {user.course.name} takes a student's submission only to an "
                                        "assignment (free_submissions is off): name one in assignment_id")

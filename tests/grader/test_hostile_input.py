@@ -69,7 +69,7 @@ BODIES = [
     ("integer-absurd", sheet_with("answers.C1.samples", "9" * 300).encode(), JSON, 422, "sheet.answers.C1.samples",
      "less than or equal"),
     ("list-absurd", sheet_with("answers.A1.samples_150", json.dumps(["N1"] * 50_000)).encode(), JSON, 422,
-     "sheet.answers.A1.samples_150", "at most 4"),
+     "sheet.answers.A1.samples_150", "at most 16 items"),  # the sheet's caps, before any work (grader.services.sheets)
     ("string-absurd", big_sheet_explanation(500_000).encode(), JSON, 422, "sheet.answers.A5.explanation", "at most 4000"),
     ("substeps-absurd", sheet_with("configs.extension.substeps", "1000000000").encode(), JSON, 422,
      "sheet.configs.extension.substeps", "less than or equal"),

@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Depends, Request, Response, status
+from fastapi import APIRouter, Request, Response, status
 from sqlalchemy import select
 
 from grader import dispatch
 from grader.api import etag
 from grader.api.deps import CurrentUser, SessionDep, SubmissionDep
-from grader.api.ratelimit import limit_submissions
 from grader.api.responses import errors
-from grader.api.views import grade_history_public, grade_public, submission_public
+from grader.api.views import case_runs_public, grade_history_public, grade_public, submission_public
 from grader.core.rubrics import grade_history
 from grader.models import Event
 from grader.schemas import CaseRunPublic, EventPublic, GradeHistoryEntry, GradePublic, SubmissionCreate, SubmissionPublic
@@ -29,12 +28,12 @@ NOT_GRADED = errors(409, _409="Not graded yet, or not shown to this student yet 
              responses=errors(403, 409, 413, 422, 429, _409=(
                  "Refused by its assignment: not open yet, past its hard close, or no attempt left; the rule "
                  "names the time that applies"), _429=(
-                 "Too many submissions: this token's rate, or the assignment's max_per_hour for this student; retry "
-                 "after Retry-After seconds")), dependencies=[Depends(limit_submissions)])
+                 "Too many submissions: this person's rate (counted for the API and the pages alike), or the "
+                 "assignment's max_per_hour for this student; retry after Retry-After seconds")))
 def create_submission(body: SubmissionCreate, session: SessionDep, user: CurrentUser):
     """Validate a sheet and its case configs, store the submission and its case runs, then queue every case.
-    Each token may submit at most RATE_LIMIT_SUBMISSIONS, and a student at most an assignment's max_per_hour to it
-    (429 with Retry-After past either)."""
+    Each person may submit at most RATE_LIMIT_SUBMISSIONS (through this API and the pages together), and a student
+    at most an assignment's max_per_hour to it (429 with Retry-After past either)."""
     submission = submissions.submit(session=session, user=user, sheet=body.sheet, assignment_id=body.assignment_id,
                                      backend=body.backend, force_rerun=body.force_rerun, sender=dispatch)
     return submission_public(submission, session, user)
@@ -97,9 +96,10 @@ def list_grades(submission: SubmissionDep, session: SessionDep, user: CurrentUse
 
 
 @router.get("/{submission_id}/case-runs", response_model=list[CaseRunPublic], responses=ONE)
-def list_case_runs(submission: SubmissionDep):
-    """Every case run with its state, requested and actual backend, reuse and provenance."""
-    return submission.case_runs
+def list_case_runs(submission: SubmissionDep, session: SessionDep, user: CurrentUser):
+    """Every case run with its state, requested and actual backend, reuse and provenance (not the provenance and
+    metrics of a run that decides an item withheld from the caller)."""
+    return case_runs_public(submission, session, user)
 
 
 @router.get("/{submission_id}/events", response_model=list[EventPublic], responses=ONE)
