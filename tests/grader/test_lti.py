@@ -653,3 +653,48 @@ def test_a_roster_sync_without_an_lms_roster_is_a_conflict(api, platform):
     answer = api.client.post("/v1/courses/l03/lti/roster-sync", headers=api.as_("prof"))
     assert answer.status_code == 409 and "roster" in answer.json()["detail"]
     assert api.client.post("/v1/courses/l03/lti/roster-sync", headers=api.as_("alice")).status_code in (403, 404)
+
+
+def launch_states() -> int:
+    from grader.models import LtiLaunchState
+
+    with _session() as session:
+        return session.scalar(select(func.count()).select_from(LtiLaunchState))
+
+
+def test_anonymous_logins_are_limited_per_address(api, platform, monkeypatch):
+    """Each /lti/login stores a state row: one address gets settings.rate_limit_lti_logins of them, then 429 with
+    Retry-After and the rule, nothing stored; another address is not held back by it."""
+    from fastapi.testclient import TestClient
+
+    from grader.main import app
+    from grader.settings import settings
+
+    monkeypatch.setattr(settings, "rate_limit_lti_logins", "3/minute")
+    url = platform.login_url("lms-user-17", "link-1")
+    assert [api.client.get(url, follow_redirects=False).status_code for _ in range(3)] == [302] * 3
+    refused = api.client.get(url, follow_redirects=False)
+    assert refused.status_code == 429 and 1 <= int(refused.headers["retry-after"]) <= 60
+    assert "at most 3 per 1 minute LTI logins from one address" in refused.text
+    assert launch_states() == 3
+    other = TestClient(app, client=("203.0.113.9", 50000))
+    assert other.get(url, follow_redirects=False).status_code == 302
+    assert launch_states() == 4
+
+
+def test_expired_logins_are_deleted_a_day_after_they_expire(api, platform):
+    from datetime import timedelta
+
+    from grader.models import LtiLaunchState, LtiRegistration, utcnow
+
+    now = utcnow()
+    with _session() as session:
+        registration = session.scalar(select(LtiRegistration))
+        for name, expired in (("old", now - timedelta(days=1, minutes=1)), ("recent", now - timedelta(hours=23))):
+            session.add(LtiLaunchState(registration_id=registration.id, state=name, nonce=name, created_at=expired,
+                                       expires_at=expired))
+        session.commit()
+    assert api.client.get(platform.login_url("lms-user-17", "link-1"), follow_redirects=False).status_code == 302
+    with _session() as session:
+        states = set(session.scalars(select(LtiLaunchState.state)))
+    assert "old" not in states and "recent" in states and len(states) == 2
