@@ -87,7 +87,7 @@ def _send_one(session: Session, assignment_id: int, seen: datetime, now: datetim
     except Exception as exc:  # noqa: BLE001 - any failure is recorded and retried, never lost or hidden
         session.rollback()
         log.exception("sending the scores of assignment %s to the LMS failed", assignment_id)
-        results, crash = [], f"{type(exc).__name__}: {exc}"[:1000]
+        results, crash = [], f"{type(exc).__name__}: {lti.failure_text(exc)}"[:1000]
     else:
         crash = None
     counts: dict[str, int] = {}
