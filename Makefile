@@ -26,8 +26,12 @@ RUN_FLAGS ?=
 run: $(STAMP)
 	$(VENV)/bin/grader run $(RUN_FLAGS)
 
+# The suite on one test process per core (pytest-xdist; an integration module stays on one process, tests/conftest.py).
+# `make test TEST_WORKERS=0` runs it in this process alone; `make test PYTEST_ARGS='tests/rubric -k tumble'` a part.
+TEST_WORKERS ?= auto
+PYTEST_ARGS ?=
 test: $(STAMP)
-	$(PY) -m pytest
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadgroup $(PYTEST_ARGS)
 
 check: $(STAMP)
 	$(VENV)/bin/grader check --backend cpu --out out/check

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 
@@ -30,10 +31,45 @@ def _clock(request):
         yield at
 
 
+def pytest_collection_modifyitems(config, items):
+    """Under pytest-xdist (`make test`: --dist loadgroup), an integration module stays whole on one test process: its
+    tests share module fixtures (a second host, a private broker, a browser walk's pages) that are costly to build
+    twice. Every other test is scheduled on its own, wherever a process is free."""
+    for item in items:
+        if "integration" in item.path.parts and not item.get_closest_marker("xdist_group"):
+            item.add_marker(pytest.mark.xdist_group(item.path.stem))
+
+
 @pytest.fixture(scope="session")
-def measured(tmp_path_factory) -> dict[str, CaseResult]:
-    """N1-N5 and both friction runs, measured once per session in one warm Genesis process."""
-    out = tmp_path_factory.mktemp("measured")
+def measured(tmp_path_factory, worker_id) -> dict[str, CaseResult]:
+    """N1-N5 and both friction runs, measured once per test run in one warm Genesis process.
+
+    Under pytest-xdist the first test process to need them measures them into a folder all processes share, under a
+    file lock; the others wait for it and read the very same runs back through `load_result`, which checks each one
+    as it checked the first time (arrays, provenance, discretization): one measurement, never a substitute."""
+    from filelock import FileLock
+
+    from worker.case_process import load_result
+
+    if worker_id == "master":
+        out = tmp_path_factory.mktemp("measured")
+        return _measured_into(out)
+    shared = tmp_path_factory.getbasetemp().parent / "measured"
+    with FileLock(str(shared) + ".lock"):
+        done = shared / "done.json"
+        if not done.exists():
+            results = _measured_into(shared)
+            done.write_text(json.dumps({name: r.wall_s for name, r in results.items()}))
+            return results
+    walls = json.loads(done.read_text())
+    results = {name: load_result(spec, shared / name, exit_status=0, mode="warm", wall_s=walls[name])
+               for name, spec in BASELINE_CASES.items()}
+    failed = {name: r.error for name, r in results.items() if not r.ok}
+    assert not failed, f"baseline cases measured by another test process do not read back: {failed}"
+    return results
+
+
+def _measured_into(out) -> dict[str, CaseResult]:
     results = run_cases(BASELINE_CASES.values(), out, mode="warm")
     failed = {name: r.error for name, r in results.items() if not r.ok}
     assert not failed, f"baseline cases failed on real Genesis: {failed}"

@@ -18,12 +18,28 @@ from tools.bench.processes import STARTUP_LIMIT_S, children, free_port, start_ap
 from tools.bench.stack import ServiceUnavailable
 from tools.bench.stack import postgres_database as _postgres_database
 
-__all__ = ["PG_ADMIN_URL", "REDIS_URL", "ROOT", "STARTUP_LIMIT_S", "children", "free_port", "postgres_database",
-           "private_kernel_cache", "redis_client", "start_api", "start_worker", "stop", "unavailable",
-           "wait_for"]
+__all__ = ["PG_ADMIN_URL", "REDIS_URL", "ROOT", "SPARE_REDIS_URL", "STARTUP_LIMIT_S", "children", "free_port",
+           "postgres_database", "private_kernel_cache", "redis_client", "start_api", "start_worker", "stop",
+           "unavailable", "wait_for"]
 
 PG_ADMIN_URL = os.environ.get("TEST_POSTGRES_URL", "postgresql+psycopg2://postgres@127.0.0.1:5432/test")
-REDIS_URL = os.environ.get("TEST_REDIS_URL", "redis://127.0.0.1:6379/11")
+
+
+def _worker_index() -> int:
+    """This test process's index under pytest-xdist (gw0 -> 0, gw1 -> 1, ...); 0 without xdist."""
+    name = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
+    return int(name[2:]) if name[2:].isdigit() else 0
+
+
+# Two Redis databases per test process, so that processes running side by side (pytest-xdist) never flush or read
+# each other's broker: gw0 has 11 and 12 (the suite's numbers before xdist), gw1 9 and 10, gw2 7 and 8, gw3 5 and 6.
+# 13-15 stay for the benchmark (tools.bench.stack uses 14) and 0-4 for a developer's own services.
+REDIS_DB = 11 - 2 * _worker_index()
+if REDIS_DB < 5:
+    raise RuntimeError("at most 4 pytest-xdist workers share one Redis server (tests/services.py)")
+REDIS_URL = os.environ.get("TEST_REDIS_URL", f"redis://127.0.0.1:6379/{REDIS_DB}")
+# The second database: a test that needs a broker of its own beside the session's stack (test_fair_broker).
+SPARE_REDIS_URL = REDIS_URL.rsplit("/", 1)[0] + f"/{int(REDIS_URL.rsplit('/', 1)[1]) + 1}"
 
 
 def private_kernel_cache(folder: Path) -> dict[str, str]:

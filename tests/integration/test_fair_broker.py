@@ -16,7 +16,7 @@ QUEUE = "fair-queue-test"
 @pytest.fixture
 def redis_url():
     client = services.redis_client()  # fails under CI=true when Redis is missing
-    url = services.REDIS_URL.rsplit("/", 1)[0] + "/12"
+    url = services.SPARE_REDIS_URL
     yield url
     client.connection_pool.disconnect()
 
