@@ -32,12 +32,15 @@ def _worker_index() -> int:
 
 
 # Two Redis databases per test process, so that processes running side by side (pytest-xdist) never flush or read
-# each other's broker: gw0 has 11 and 12 (the suite's numbers before xdist), gw1 9 and 10, gw2 7 and 8, gw3 5 and 6.
-# 13-15 stay for the benchmark (tools.bench.stack uses 14) and 0-4 for a developer's own services.
-REDIS_DB = 11 - 2 * _worker_index()
-if REDIS_DB < 5:
-    raise RuntimeError("at most 4 pytest-xdist workers share one Redis server (tests/services.py)")
-REDIS_URL = os.environ.get("TEST_REDIS_URL", f"redis://127.0.0.1:6379/{REDIS_DB}")
+# each other's broker. TEST_REDIS_URL names gw0's first one (default 11, the suite's number before xdist: gw0 has 11
+# and 12, gw1 9 and 10, gw2 7 and 8, gw3 5 and 6; 13-15 stay for the benchmark, tools.bench.stack uses 14). A second
+# test run on the same machine takes other numbers: TEST_REDIS_URL=redis://127.0.0.1:6379/4 uses 4, 5 and 2, 3.
+_BASE_URL = os.environ.get("TEST_REDIS_URL", "redis://127.0.0.1:6379/11")
+REDIS_DB = int(_BASE_URL.rsplit("/", 1)[1]) - 2 * _worker_index()
+if REDIS_DB < 0:
+    raise RuntimeError(f"TEST_REDIS_URL={_BASE_URL} leaves no Redis database pair for test process "
+                       f"{os.environ.get('PYTEST_XDIST_WORKER')} (tests/services.py)")
+REDIS_URL = f"{_BASE_URL.rsplit('/', 1)[0]}/{REDIS_DB}"
 # The second database: a test that needs a broker of its own beside the session's stack (test_fair_broker).
 SPARE_REDIS_URL = REDIS_URL.rsplit("/", 1)[0] + f"/{int(REDIS_URL.rsplit('/', 1)[1]) + 1}"
 
