@@ -3,6 +3,8 @@ PYTHON ?= python3.11
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+APT_CONTAINERS := apt-get install -y --no-install-recommends podman runc netavark aardvark-dns iptables uidmap \
+	debootstrap openssl
 
 .PHONY: run test check bench clean i18n
 
@@ -10,7 +12,12 @@ $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	# torch first and exactly pinned: the CPU wheel is on disk; anything looser downloads CUDA builds.
 	$(PY) -m pip install --quiet torch==2.13.0
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -e '.[worker,test]'
+	# The container test (tests/integration/test_containers.py, run under CI=true) builds the images and runs the
+	# compose stack with Debian's podman (runc; netavark and aardvark-dns for the stack's network and names) and a
+	# debootstrap base image. Optional: without them `make run` and `make test` work, the container test skipped.
+	test -x /usr/bin/podman -a -x /usr/sbin/debootstrap -a -x /usr/lib/podman/netavark || $(APT_CONTAINERS) \
+		|| (apt-get update && $(APT_CONTAINERS)) || echo 'podman not installed: the container test will not run'
 	# Browser tests use Debian's chromium; Playwright's own browser download is unreachable from these machines.
 	test -x /usr/bin/chromium || apt-get install -y --no-install-recommends chromium \
 		|| (apt-get update && apt-get install -y --no-install-recommends chromium)
