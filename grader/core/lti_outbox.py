@@ -11,14 +11,16 @@ from sqlalchemy import case, exists, select
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.orm import Session
 
-from grader.models import Assignment, Course, LtiContext, LtiOutbox, LtiRegistration, utcnow
+from grader.models import Assignment, Course, LtiContext, LtiLineItem, LtiOutbox, LtiRegistration, utcnow
 
 
 def _has_gradebook(session: Session, course_id: int) -> bool:
-    """Whether any LMS course of this course gave a grades service: otherwise there is nothing to send anywhere."""
+    """Whether any LMS course of this course gave a grades service (its line items, or a link's own line item):
+    otherwise there is nothing to send anywhere."""
+    link_item = exists().where(LtiLineItem.context_id == LtiContext.id)
     return bool(session.scalar(select(exists().where(LtiContext.registration_id == LtiRegistration.id,
                                                      LtiRegistration.course_id == course_id,
-                                                     LtiContext.lineitems_url.is_not(None)))))
+                                                     LtiContext.lineitems_url.is_not(None) | link_item))))
 
 
 def mark(*, session: Session, assignment_ids: list[int], now: datetime | None = None) -> None:

@@ -217,3 +217,21 @@ def test_only_the_courses_instructors_see_the_lti_page(api, platform):
     page = api.client.get("/courses/l03/lti")
     assert page.status_code == 200 and platform.issuer in page.text and "course-ctx-1" in page.text
     assert 'href="/courses/l03/lti"' in api.client.get("/submissions").text  # the instructor's header links it
+
+
+def test_a_platform_that_gives_only_the_links_line_item_gets_the_scores_there(api, platform):
+    """A platform that lets the tool post scores to the link's own column only (the AGS claim has `lineitem`, no
+    `lineitems`, and the score scope alone): a stored grade reaches that column on the next pass."""
+    score_scope = "https://purl.imsglobal.org/spec/lti-ags/scope/score"
+    platform.tool_jwks = api.client.get("/lti/jwks").json()
+    aid = create(api).json()["id"]
+    platform.links["link-1"] = {"assignment_id": str(aid)}
+    platform.line_items.append({"id": f"{platform.url}/lineitems/0", "label": "the LMS's column", "scores": {}})
+    platform.override = {"https://purl.imsglobal.org/spec/lti-ags/claim/endpoint": {
+        "scope": [score_scope], "lineitem": f"{platform.url}/lineitems/0"}}
+    assert post_launch(api, launch_form(api, platform, STUDENT)).status_code == 200
+    grade(aid, 1, 3.5)
+    assert outbox(aid).due_at is not None  # the link's column is a gradebook: the grade marks its assignment
+    assert [p.counts for p in sweep()] == [{"sent": 1}]
+    assert gradebook(platform) == {STUDENT: 3.5} and len(platform.line_items) == 1
+    assert platform.token_scopes == [score_scope]
