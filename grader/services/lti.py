@@ -45,7 +45,7 @@ from grader.settings import settings
 STATE_LIFETIME = timedelta(minutes=10)
 # A rotated-out key stays in the tool's JWKS this long: what it signed just before the rotation still verifies.
 RETIRED_KEY_KEPT = timedelta(days=2)
-# Pages of a roster or of line items one listing follows at most: a platform's `next` links must end.
+# Pages (of a roster, of line items) one connector reads at most: a platform's `next` links must end.
 MAX_PAGES = 200
 
 CLAIM = "https://purl.imsglobal.org/spec/lti/claim/"
@@ -268,8 +268,7 @@ def admit_login(*, address: str) -> None:
 
 
 def forget_launch_states(*, session: Session, now=None) -> int:
-    """Deletes the logins that expired more than STATE_KEPT ago (at every login, and by the reconciler's pass);
-    how many. No commit."""
+    """Deletes the logins that expired more than STATE_KEPT ago (called at every login); how many. No commit."""
     now = now or utcnow()
     return session.execute(delete(LtiLaunchState).where(LtiLaunchState.expires_at < now - STATE_KEPT)).rowcount
 
@@ -316,12 +315,12 @@ def _next_page(response: requests.Response) -> str | None:
 
 class _Connector(ServiceConnector):
     """pylti1p3's service connector over the guarded session (grader.core.outbound), with errors in our words (the
-    library's carry the platform's body) and `next` links kept as sent. At most MAX_PAGES requests per connector
-    besides the token."""
+    library's carry the platform's body) and `next` links kept as sent. At most MAX_PAGES pages read (GETs) per
+    connector; score posts are not counted."""
 
     def __init__(self, registration: Registration):
         super().__init__(registration, requests_session=outbound.session())
-        self._requests = 0
+        self._pages = 0
 
     def get_access_token(self, scopes) -> str:
         url = self._registration.get_auth_token_url()
@@ -335,9 +334,9 @@ class _Connector(ServiceConnector):
     def make_service_request(self, scopes, url: str, is_post: bool = False, data: str | None = None,
                              content_type: str = "application/json", accept: str = "application/json",
                              case_insensitive_headers: bool = False):
-        self._requests += 1
-        if self._requests > MAX_PAGES:
-            raise LtiException(f"{url}: more than {MAX_PAGES} requests in one listing; stopped")
+        self._pages += 0 if is_post else 1
+        if self._pages > MAX_PAGES:
+            raise LtiException(f"{url}: more than {MAX_PAGES} pages; stopped")
         headers = {"Authorization": "Bearer " + self.get_access_token(scopes), "Accept": accept}
         if is_post:
             headers["Content-Type"] = content_type

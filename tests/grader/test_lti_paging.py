@@ -39,6 +39,7 @@ class PagingLms:
         self.asked: list[str] = []
         self.refused: list[str] = []
         self.created: list[dict] = []
+        self.endless = False  # the second page links to itself: `next` forever
         keys = JWKSet.from_json(json.dumps(tool_jwks))
         lms = self
 
@@ -61,7 +62,7 @@ class PagingLms:
                 if cursor != [CURSOR]:
                     lms.refused.append(self.path)
                     return None, None
-                return rest, None
+                return rest, f'<{lms.url}{path}?cursor={CURSOR}>; rel="next"' if lms.endless else None
 
             def do_GET(self):
                 if self.headers.get("Authorization") != "Bearer token-of-the-lms":
@@ -179,3 +180,13 @@ def test_a_page_past_the_size_cap_is_reported_with_the_url_and_status_only(api, 
     assert answer.status_code == 409
     assert answer.json()["detail"] == (f"the LMS roster of ctx could not be read: {lms.url}/memberships?cursor="
                                        f"{CURSOR} answered HTTP 200 with more than 1000 bytes")
+
+
+def test_a_roster_whose_next_links_never_end_is_stopped(api, lms, monkeypatch):
+    from grader.services import lti
+
+    monkeypatch.setattr(lti, "MAX_PAGES", 5)
+    lms.endless = True
+    answer = api.client.post("/v1/courses/l03/lti/roster-sync", headers=api.as_("prof"))
+    assert answer.status_code == 409
+    assert answer.json()["detail"].endswith(f"{lms.url}/memberships?cursor={CURSOR}: more than 5 pages; stopped")

@@ -257,3 +257,61 @@ def test_public_addresses_pass(http_allowed, address):
     from grader.core.outbound import address_refusal
 
     assert address_refusal("h", ipaddress.ip_address(address), 443) is None
+
+
+def _certificate(tmp_path, name: str):
+    """A self-signed certificate for `name` and its key, as files."""
+    import datetime
+
+    from cryptography import x509
+    from cryptography.hazmat.primitives import hashes, serialization
+    from cryptography.hazmat.primitives.asymmetric import ec
+    from cryptography.x509.oid import NameOID
+
+    key = ec.generate_private_key(ec.SECP256R1())
+    subject = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, name)])
+    start = datetime.datetime.now(datetime.UTC) - datetime.timedelta(hours=1)
+    cert = (x509.CertificateBuilder().subject_name(subject).issuer_name(subject).public_key(key.public_key())
+            .serial_number(x509.random_serial_number()).not_valid_before(start)
+            .not_valid_after(start + datetime.timedelta(days=1))
+            .add_extension(x509.SubjectAlternativeName([x509.DNSName(name)]), critical=False)
+            .add_extension(x509.BasicConstraints(ca=True, path_length=None), critical=True)
+            .sign(key, hashes.SHA256()))
+    cert_file, key_file = tmp_path / f"{name}.pem", tmp_path / f"{name}.key"
+    cert_file.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
+    key_file.write_bytes(key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
+                                           serialization.NoEncryption()))
+    return cert_file, key_file
+
+
+def test_https_is_verified_against_the_urls_host_name_on_the_checked_socket(tmp_path, monkeypatch):
+    """The guard opens the socket to the checked address; TLS over it still names and verifies the URL's host (a
+    platform on a private network, allowed by name, resolved here to loopback)."""
+    import ssl
+
+    from grader.core import outbound
+    from grader.settings import settings
+
+    server = Internal()
+    cert, key = _certificate(tmp_path, "lms.campus.example")
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+    context.load_cert_chain(cert, key)
+    server.server.socket = context.wrap_socket(server.server.socket, server_side=True)
+    real = socket.getaddrinfo
+
+    def lookup(host, port, *args, **kwargs):
+        if host in ("lms.campus.example", "other.campus.example"):
+            return [(socket.AF_INET, socket.SOCK_STREAM, 6, "", ("127.0.0.1", port))]
+        return real(host, port, *args, **kwargs)
+
+    monkeypatch.setattr(socket, "getaddrinfo", lookup)
+    monkeypatch.setattr(settings, "outbound_allowed_hosts", [f"lms.campus.example:{server.port}",
+                                                             f"other.campus.example:{server.port}"])
+    try:
+        answer = outbound.session().get(f"https://lms.campus.example:{server.port}/keys", verify=str(cert))
+        assert answer.status_code == 200 and answer.text.startswith(SECRET)
+        with pytest.raises(outbound.OutboundError, match="could not connect"):  # the certificate names another host
+            outbound.session().get(f"https://other.campus.example:{server.port}/keys", verify=str(cert))
+        assert "loopback" in _refusal(f"https://127.0.0.1:{server.port}/keys")  # not allowed by address
+    finally:
+        server.close()
