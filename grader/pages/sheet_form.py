@@ -91,11 +91,22 @@ def _standing(session, user: User, assignment: Assignment | None) -> dict | None
             "penalty": assignments.penalty_fraction(assignment, late)}
 
 
+def _book(session, user: User, lesson: str):
+    """The course's rubric, read once per request (its session): a post both reads the form and renders the page."""
+    books = session.info.setdefault("sheet_form_books", {})
+    if (user.course_id, lesson) not in books:
+        books[user.course_id, lesson] = course_rubric(session, user.course_id, lesson)
+    return books[user.course_id, lesson]
+
+
 def _render(request: Request, session, user: User, assignment: Assignment | None, sheet: dict, *,
             errors: list[dict] | None = None, checked: bool = False, notice: str | None = None,
             refusal: DomainError | None = None, code: int = status.HTTP_200_OK) -> HTMLResponse:
     part, lesson = _part_and_lesson(assignment)
-    book = course_rubric(session, user.course_id, lesson)
+    if too_large := sheets.size_problems(sheet):  # a draft saved before the caps held: never rendered input by input
+        refusal = refusal or Invalid(OVER_CAPS, too_large)
+        errors, sheet = refusal.errors, _starting_sheet(user)
+    book = _book(session, user, lesson)
     ids = assignments.item_ids(lesson, part)
     items = form_logic.item_forms(book, ids)
     book_configs = book if form_logic.has_configs(part) else None
@@ -121,15 +132,18 @@ def _render(request: Request, session, user: User, assignment: Assignment | None
     }, status_code=code)
 
 
+OVER_CAPS = "your saved draft cannot be edited in the form; import a corrected YAML"
+
+
 def _posted_sheet(session, user: User, assignment: Assignment | None, form) -> dict:
     """The sheet the posted form holds over the saved draft. Invalid naming the path when the saved draft is past the
     caps (grader.services.sheets.size_problems: one saved before they held, or a key the form cannot name): a YAML
     import, or starting from the last submission, replaces it."""
     part, lesson = _part_and_lesson(assignment)
-    book = course_rubric(session, user.course_id, lesson)
+    book = _book(session, user, lesson)
     items = form_logic.item_forms(book, assignments.item_ids(lesson, part))
     previous = _draft_sheet(session, user, assignment)
-    sheets.check_size(previous, detail="your saved draft cannot be edited in the form; import a corrected YAML")
+    sheets.check_size(previous, detail=OVER_CAPS)
     sheet = form_logic.sheet_from_form(form, items=items, book=book if form_logic.has_configs(part) else None,
                                        previous=previous)
     sheet["lesson"] = lesson

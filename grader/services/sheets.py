@@ -18,7 +18,10 @@ MAX_ITEMS = 16  # in one list (a friction case has at most 4 lanes)
 MAX_DEPTH = 10  # sheet.configs.table_exercise.lanes.0.color.0 is 6 deep
 MAX_TEXT = 4000  # characters in one text value (an explanation's limit)
 MAX_KEY = 64  # characters in one key
-MAX_VALUES = 1500  # values (mappings, lists and scalars) in the whole sheet
+# Values (mappings, lists and scalars) in the whole sheet; the reference sheet has 120, one with all six configs written
+# out whole (four lanes) and every explanation 385. Each leaf of the form's configs is one input, so the form of any
+# sheet within this posts far fewer than the 1000 fields a form may have (Starlette's max_fields).
+MAX_VALUES = 500
 MAX_ERRORS = 20
 
 

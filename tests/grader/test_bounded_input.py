@@ -87,11 +87,21 @@ def test_thousands_of_extra_config_keys_are_refused_before_any_work(api):
     assert checked.status_code == 422 and "at most 64 keys (this one has 2003)" in checked.text
 
 
+def test_a_stored_draft_past_the_caps_is_never_rendered_input_by_input(api):
+    """The form shows the refusal and a fresh form, not 8,000 inputs (each one more step of the render)."""
+    _store_draft(_with_config(**{f"k{i}": i for i in range(8000)}))
+    page = api.client.get("/sheet", headers=api.as_("alice"))
+    assert page.status_code == 200, page.text[:2000]
+    assert 'id="refusal"' in page.text and "at most 64 keys (this one has 8003)" in page.text
+    assert 'name="configs.table_exercise.k0"' not in page.text and page.text.count("<input") < 400
+
+
 @pytest.mark.parametrize("sheet, field, rule", [
     (_with_config(lanes=[{"name": "l"}] * 17), "sheet.configs.table_exercise.lanes", "at most 16 items"),
     ({**reference_sheet(), "student": "x" * 4001}, "sheet.student", "at most 4000 characters"),
     ({**reference_sheet(), "deep": [[[[[[[[[[[1]]]]]]]]]]]}, "sheet.deep.0.0.0.0.0.0.0.0.0", "nested at most 10"),
     ({**reference_sheet(), "x" * 65: 1}, "sheet." + "x" * 64, "a key is 1 to 64 characters"),
+    ({**reference_sheet(), "e": {f"k{i}": [1] * 15 for i in range(40)}}, "sheet", "at most 500 values in all"),
 ])
 def test_each_cap_is_named_with_its_path(api, sheet, field, rule):
     refused = api.client.post("/v1/submissions", json={"sheet": sheet}, headers=api.as_("alice"))

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from tools.bench import tables
+from tools.bench.bounded import bench_bounded, format_bounded
 from tools.bench.cases import bench_cases, format_cases
 from tools.bench.classroom import bench_class
 from tools.bench.figures import bench_figures
@@ -96,6 +97,11 @@ def run_bench(o: BenchOptions, *, save: Callable[[str, object], None], log: Call
                 rows.append(bench_class(stack, o.class_size, log=log))
             save("class", rows)
         out += [*tables.format_class(rows), ""]
+    if "bounded" in o.parts:
+        log("== the worst sheet the caps admit: check, save, export, import, submit (in-process)")
+        figures = bench_bounded(o.out_dir / "bounded", max(o.repeats, 5), log=log)
+        save("bounded", figures)
+        out += [*format_bounded(figures), ""]
     if out and out[-1] == "":
         out.pop()
     return out + ["machine: shared (other jobs may run on the same cores); compare figures within this run only"]
