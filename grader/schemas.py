@@ -152,6 +152,9 @@ class GradePublic(BaseModel):
     regrade_id: int | None = None  # the regrade that wrote this grade; None for the first grading
     pending: str | None = Field(None, description=(
         "Which items are withheld from this student and until when; `total` then counts the shown items only"))
+    withheld_measurements: dict[str, str] = Field(default_factory=dict, description=(
+        "{case run: why} of the runs whose measurements decide a withheld item: hidden until it is shown (their "
+        "series, metrics, provenance, files, and the evidence of every item that reads them)"))
 
 
 class GradeHistoryEntry(BaseModel):

@@ -8,7 +8,7 @@ from sqlalchemy.orm import Session
 
 from grader.core.states import CaseRunState, values
 from grader.models import Grade, Submission, User
-from grader.schemas import GradeHistoryEntry, GradePublic, Progress, SubmissionPublic
+from grader.schemas import CaseRunPublic, GradeHistoryEntry, GradePublic, Progress, SubmissionPublic
 from grader.services.visibility import GradeView, attempt_standing, grade_view
 
 
@@ -32,6 +32,14 @@ def submission_public(submission: Submission, session: Session, user: User) -> S
     )
 
 
+def case_runs_public(submission: Submission, session: Session, user: User) -> list[CaseRunPublic]:
+    """Every case run as `user` may see it: a run whose measurements decide an item withheld from them
+    (GradeView.withheld_runs) keeps its state, spec and backends but not its provenance or metrics."""
+    withheld = grade_view(session=session, submission=submission, user=user, report=False).withheld_runs
+    runs = [CaseRunPublic.model_validate(r) for r in submission.case_runs]
+    return [r.model_copy(update={"provenance": None, "metrics": None}) if r.name in withheld else r for r in runs]
+
+
 def grade_public(view: GradeView) -> GradePublic:
     """The current grade as the caller may see it (every score and item of a withheld one masked)."""
     grade, report = view.stored, view.report
@@ -40,6 +48,7 @@ def grade_public(view: GradeView) -> GradePublic:
         rubric_lesson=grade.rubric_lesson, rubric_version=grade.rubric_version, rubric_hash=grade.rubric_hash,
         items=report.get("items", []), created_at=grade.created_at, superseded_at=grade.superseded_at,
         regrade_id=grade.regrade_id, pending=view.pending,
+        withheld_measurements=report.get("withheld_measurements", {}) if view.hidden else {},
     )
 
 

@@ -132,11 +132,12 @@ def report_page(request: Request, submission_id: int, session: SessionDep, user:
     attempt = _attempts(session, [submission], user).get(submission.id)
 
     def build():
-        view = report_view(submission, grade if grade.shown else None)
+        view = report_view(submission, grade if grade.shown else None, grade.withheld_runs)
         return TEMPLATES.TemplateResponse(request, "report.html", {
             "user": user, "view": view, "part_titles": PART_TITLES, "attempt": attempt,
             "history": [] if hidden else grade_history(session, submission.id),
-            "charts": _charts(submission), "series_url": f"/submissions/{submission.id}/series.json"})
+            "charts": _charts(submission, grade.withheld_runs),
+            "series_url": f"/submissions/{submission.id}/series.json"})
 
     # A complete report answers 304 to a browser that holds it, and is rendered once per validator (grader.api.etag).
     tag = etag.etag_of("report-page", etag.report_state(session, submission, user, grade), request_locale(request),
@@ -145,12 +146,12 @@ def report_page(request: Request, submission_id: int, session: SessionDep, user:
     return etag.conditional(request, tag, build, cache_key="report-page")
 
 
-def _charts(submission: Submission) -> list:
-    """The report's charts once the submission is graded (as the PNG figures were, drawn after grading), whatever
-    of the grade is withheld: they show measurements, which the case runs' downloads show too."""
+def _charts(submission: Submission, withheld: dict[str, str]) -> list:
+    """The report's charts once the submission is graded (as the PNG figures were, drawn after grading), without the
+    runs whose measurements decide an item withheld from the reader (GradeView.withheld_runs)."""
     if submission.status != SubmissionState.GRADED:
         return []
-    return figure_series.report_charts(submission)
+    return figure_series.report_charts(submission, withheld)
 
 
 @router.get("/submissions/{submission_id}/results.json")
@@ -179,12 +180,17 @@ def figure_series_json(request: Request, submission_id: int, session: SessionDep
     submission = _readable(session, user, submission_id)
     if submission is None:
         return _not_found(request, user, f"figures of submission {submission_id}")
+    # The runs deciding an item withheld from this reader carry no series (GradeView.withheld_runs): what is withheld
+    # (the items, why, and the grade they are withheld from) is part of the validator, like the report's.
+    grade = grade_view(session=session, submission=submission, user=user, report=False)
     # Built once per state of its runs (and reader) while the submission is finished: a report view asks again.
     tag = etag.etag_of("series", [user.id, submission.id, figure_series.SHAPE, *[
-        [r.id, r.status, r.result_status, r.reused_from_id, str(r.finished_at)] for r in submission.case_runs]]) \
+        [r.id, r.status, r.result_status, r.reused_from_id, str(r.finished_at)] for r in submission.case_runs]],
+        sorted(grade.hidden.items()), grade.stored.id if grade.stored is not None else None) \
         if submission.status in (SubmissionState.GRADED, SubmissionState.FAILED) else None
     return etag.conditional(request, tag, lambda: JSONResponse(figure_series.submission_series(
-        submission=submission), headers={"Cache-Control": "private, no-cache"}), cache_key="series")
+        submission=submission, withheld=grade.withheld_runs), headers={"Cache-Control": "private, no-cache"}),
+        cache_key="series")
 
 
 @router.get("/submissions/{submission_id}/case-runs/{name}/{filename}")
@@ -195,8 +201,10 @@ def evidence_file(request: Request, submission_id: int, name: str, filename: str
     submission = _readable(session, user, submission_id)
     if submission is None:
         return _not_found(request, user, f"file {filename} of case run {name}")
+    withheld = grade_view(session=session, submission=submission, user=user, report=False).withheld_runs
     try:
-        body, media_type = exports.evidence_file(submission=submission, name=name, filename=filename)
+        body, media_type = exports.evidence_file(submission=submission, name=name, filename=filename,
+                                                 withheld=withheld)
     except NotFound:
         return _not_found(request, user, f"file {filename} of case run {name}")
     return Response(body, media_type=media_type, headers={

@@ -6,6 +6,7 @@ Pure reads of the database rows and the stored grade; nothing here runs a case, 
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
 
@@ -42,6 +43,7 @@ class RunRow:
     reused_from_id: int | None
     provenance: dict
     files: list[str]
+    withheld: str | None = None  # why its measurements (provenance, files, metrics) are withheld from the reader
 
 
 @dataclass
@@ -64,6 +66,8 @@ class ItemRow:
     # An instructor's override (grader.services.overrides): {score, comment, by, at}, with the measured score beside it.
     override: dict | None = None
     measured_score: float | None = None
+    # The runs this shown item reads whose measurements decide a withheld item: its evidence waits with them.
+    evidence_withheld: list[str] = field(default_factory=list)
 
     @property
     def override_at(self) -> datetime | None:
@@ -117,6 +121,14 @@ class ReportView:
     # Review requests about the items shown to the reader, oldest first, and every override ever set (staff read it).
     reviews: list[ReviewRequest] = field(default_factory=list)
     override_history: list[Override] = field(default_factory=list)
+    # {case run: why} of the runs whose measurements decide an item withheld from the reader (GradeView.withheld_runs)
+    withheld_runs: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def some_withheld(self) -> bool:
+        """Whether any item of the grade is withheld from the reader: then whether an instructor set its score is
+        withheld with it, and the report may not say that every score is the measured one."""
+        return self.grade is not None and bool(self.grade.hidden)
 
     @property
     def overridden(self) -> list[ItemRow]:
@@ -207,14 +219,21 @@ def _rubric(grade: Grade):
         return None
 
 
-def report_view(submission: Submission, grade: GradeView | None) -> ReportView:
-    """`grade`: the current grade as the reader may see it (grader.services.visibility), None when none is shown."""
+def report_view(submission: Submission, grade: GradeView | None,
+                withheld: Mapping[str, str] | None = None) -> ReportView:
+    """`grade`: the current grade as the reader may see it (grader.services.visibility), None when none is shown.
+    `withheld`: {case run: why} of the runs whose measurements the reader may not see yet (GradeView.withheld_runs):
+    listed with their state and why, without provenance, files or lanes."""
     now = utcnow()
+    withheld = dict(withheld or {})
     runs = [RunRow(name=r.name, kind=r.kind, status=r.status, result_status=r.result_status, backend=r.backend,
                    actual_backend=r.actual_backend, elapsed_s=_elapsed(r, now), error=r.error,
-                   reused_from_id=r.reused_from_id, provenance=r.provenance or {}, files=_files(r))
+                   reused_from_id=r.reused_from_id,
+                   provenance={} if r.name in withheld else r.provenance or {},
+                   files=[] if r.name in withheld else _files(r), withheld=withheld.get(r.name))
             for r in submission.case_runs]
-    view = ReportView(submission=submission, runs=runs, grade=grade, lanes=_lanes(submission.case_runs))
+    view = ReportView(submission=submission, runs=runs, grade=grade, withheld_runs=withheld,
+                      lanes=_lanes([r for r in submission.case_runs if r.name not in withheld]))
     view.first_run_note = any(r.status == CaseRunState.RUNNING and (r.elapsed_s or 0) > FIRST_RUN_NOTE_AFTER_S for r in runs)
     if grade is None:
         return view
@@ -232,6 +251,7 @@ def report_view(submission: Submission, grade: GradeView | None) -> ReportView:
             verdict_label=VERDICT_LABEL.get(item["verdict"], item["verdict"]),
             score=item["score"], points=item["points"], counted=counted, feedback=item["feedback"],
             override=override, measured_score=item.get("measured_score") if override else None,
+            evidence_withheld=item.get("evidence_withheld", []),
         ))
     parts: dict[str, list[ItemRow]] = {}
     for row in view.items:

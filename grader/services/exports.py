@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import io
+from collections.abc import Mapping
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -109,12 +110,17 @@ def evidence_names(run: CaseRun) -> list[str]:
     return [name for name in EVIDENCE if name in evidence.sizes] if evidence is not None else []
 
 
-def evidence_file(*, submission: Submission, name: str, filename: str) -> tuple[bytes, str]:
+def evidence_file(*, submission: Submission, name: str, filename: str,
+                  withheld: Mapping[str, str] | None = None) -> tuple[bytes, str]:
     """(bytes, media type) of one evidence file of the submission's case run `name`, read from the database (the
-    worker's folder may be gone); NotFound otherwise."""
+    worker's folder may be gone); NotFound otherwise. Conflict for a run in `withheld` ({run name: why}, the reader's
+    GradeView.withheld_runs): its measurements decide an item withheld from the reader, and every file of it (the
+    arrays, metrics, provenance, captured output) would tell them."""
     run: CaseRun | None = next((r for r in submission.case_runs if r.name == name), None)
     if run is None or filename not in EVIDENCE:
         raise NotFound(f"no file {filename!r} for case run {name!r}")
+    if withheld and name in withheld:
+        raise Conflict(f"the measurements of case run {name!r} are withheld: it {withheld[name]}")
     evidence = evidence_of(run)
     body = evidence_bytes(evidence, filename) if evidence is not None else None
     if body is None:

@@ -6,12 +6,15 @@ on the drawing worker's disk (issue 24; `python -m tools.bench --only figures` m
 The series are what the PNG figures showed, nothing more: each case run's measured trajectories and its stored
 metrics (first contact, stops, pair frictions), never an item's score, verdict, expected value or tolerance, and never
 the lab check. So they follow the rule the PNG figures and the evidence downloads follow: whoever may read the
-submission (grader.services.access) may read them; a withheld item is not in them to leak.
+submission (grader.services.access) may read them, except the runs whose measurements decide an item withheld from
+the reader (`GradeView.withheld_runs`, grader.services.visibility): those are named, with why, and carry no series,
+metric or caption until the item is shown.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,7 +26,7 @@ from rubric import CaseResult, ContactCase, FrictionCase
 # Significant digits kept per value: float32 measurements carry about 7, and a chart (or a reader) needs fewer.
 DIGITS = 6
 # Changes when the series' JSON changes shape, so a browser's copy from an older release is never confirmed (ETag).
-SHAPE = "1"
+SHAPE = "2"
 CONTACT_CHARTS = ("contact-z", "contact-vz", "contact-count", "contact-clearance")
 FRICTION_CHARTS = ("friction-x", "friction-vx", "friction-omega")
 
@@ -79,10 +82,12 @@ def _friction(result: CaseResult) -> dict:
             "lanes": [_lane(result, lane) for lane in spec.lanes]}
 
 
-def _run(submission: Submission, run: CaseRun) -> dict:
+def _run(submission: Submission, run: CaseRun, withheld: Mapping[str, str]) -> dict:
     entry = {"name": run.name, "kind": run.kind, "status": run.result_status or run.status,
-             "backend": run.actual_backend or run.backend,
-             "data": f"/submissions/{submission.id}/case-runs/{run.name}/arrays.npz"}
+             "backend": run.actual_backend or run.backend}
+    if run.name in withheld:  # its measurements decide an item withheld from this reader: named, never drawn
+        return entry | {"status": "withheld", "withheld": withheld[run.name]}
+    entry["data"] = f"/submissions/{submission.id}/case-runs/{run.name}/arrays.npz"
     try:
         result = stored_result(run)
     except LookupError as exc:  # an ok run without stored arrays: said, never drawn as if empty
@@ -94,11 +99,13 @@ def _run(submission: Submission, run: CaseRun) -> dict:
     return entry | (_contact(result) if isinstance(result.spec, ContactCase) else _friction(result))
 
 
-def submission_series(*, submission: Submission) -> dict:
+def submission_series(*, submission: Submission, withheld: Mapping[str, str] | None = None) -> dict:
     """Every case run of the submission with what its charts draw (runs without a result say why): one JSON
-    document, read from the database only."""
-    return {"submission": submission.id, "digits": DIGITS,
-            "runs": [_run(submission, run) for run in submission.case_runs]}
+    document, read from the database only. `withheld`: {run name: why} of the runs the reader may not see yet
+    (GradeView.withheld_runs), listed without their series or metrics."""
+    withheld = withheld or {}
+    return {"submission": submission.id, "digits": DIGITS, "withheld": dict(withheld),
+            "runs": [_run(submission, run, withheld) for run in submission.case_runs]}
 
 
 @dataclass(frozen=True)
@@ -168,10 +175,11 @@ def _table(run: CaseRun) -> float:
     return next(iter(run.metrics["lanes"].values()))["table_friction"]
 
 
-def report_charts(submission: Submission) -> list[Chart]:
+def report_charts(submission: Submission, withheld: Mapping[str, str] | None = None) -> list[Chart]:
     """The charts a report shows, with captions from the runs' stored metrics (no arrays read: the page stays
-    cheap; the browser fetches the series). Contact charts overlay every contact run; friction charts are per run."""
-    ok = [r for r in submission.case_runs if _ok(r)]
+    cheap; the browser fetches the series). Contact charts overlay every contact run; friction charts are per run.
+    The runs in `withheld` (GradeView.withheld_runs) are in no chart and no caption."""
+    ok = [r for r in submission.case_runs if _ok(r) and r.name not in (withheld or {})]
     contact = [r for r in ok if r.metrics.get("kind") == "contact"]
     charts = [Chart(kind, "", _contact_caption(kind, contact)) for kind in CONTACT_CHARTS] if contact else []
     for run in (r for r in ok if r.metrics.get("kind") == "friction"):

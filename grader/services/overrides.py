@@ -41,8 +41,11 @@ class OverridePublic(BaseModel):
     comment: str
     by: str
     at: UtcDateTime
-    measured_score: float | None  # the item's score as measured, in the grade it overrode
+    # The item as measured under the grade's current rubric version (a regrade measures it again) while the override
+    # is in force; a superseded override keeps what its own grade measured.
+    measured_score: float | None
     measured_verdict: str | None
+    measured_rubric_version: str | None
     current: bool
     superseded_at: UtcDateTime | None
 
@@ -63,17 +66,27 @@ def recent_overrides(session: Session, *, course_id: int, limit: int = 10) -> li
 
 
 def public(session: Session, override: Override) -> OverridePublic:
-    """An override with what its grade's predecessor measured (the grade it overrode keeps the measured item)."""
-    measured = _measured_of(session, override)
+    """An override with the item as measured beside it: under the submission's current grade while the override is in
+    force (after a regrade, the new version's measurement, not the one it first overrode), else under its own grade."""
+    grade = _measured_in(session, override)
+    measured = _measured_of(grade, override.item_id)
     return OverridePublic(id=override.id, submission_id=override.submission_id, item_id=override.item_id,
                           score=override.score, comment=override.comment, by=override.by.name, at=override.at,
                           measured_score=measured.get("score"), measured_verdict=measured.get("verdict"),
+                          measured_rubric_version=grade.rubric_version if measured else None,
                           current=override.superseded_at is None, superseded_at=override.superseded_at)
 
 
-def _measured_of(session: Session, override: Override) -> dict:
-    grade = session.get(Grade, override.grade_id) if override.grade_id else None
-    item = next((i for i in (grade.report if grade else {}).get("items", []) if i["id"] == override.item_id), None)
+def _measured_in(session: Session, override: Override) -> Grade | None:
+    """The grade whose measurement an override is shown beside: the current one for an override in force (every
+    grade stored since carries it, grader.core.overrides), else the grade the override itself stored."""
+    if override.superseded_at is None and (grade := current_grade(session, override.submission_id)) is not None:
+        return grade
+    return session.get(Grade, override.grade_id) if override.grade_id else None
+
+
+def _measured_of(grade: Grade | None, item_id: str) -> dict:
+    item = next((i for i in (grade.report if grade else {}).get("items", []) if i["id"] == item_id), None)
     return measured_item(item) if item else {}
 
 

@@ -11,6 +11,15 @@ items only, and the lab check waits until nothing is withheld.
 An instructor's override (grader.services.overrides) is part of the stored grade's item (`override`, with the
 measured score and verdict beside it), so it is shown exactly when its item is: a withheld item is masked down to its
 question, points and prediction, and keeps neither the override's score nor its comment.
+
+Withholding is per measurement, not only per item: the case runs whose measurements decide a withheld item are
+withheld with it on every surface a student reads (`withheld_runs`): other items' evidence that reads them (with A2
+withheld, X2's "penetration_proxy N1 ... -> extension ..." would answer A2), the report's charts and their series,
+the runs' provenance, metrics and evidence downloads, and the lab check (left out while anything is withheld). Which
+runs decide an item comes from the grade itself, as the rubric's scoring rules recorded it: the runs each item's rule
+read (`backends`), for the items the rubric says are decided by measurement (kind `measured` or `computed`; a
+`conceptual` or `config` item is decided by no run). A measured item that names no run read them all (the engine
+version of every run's provenance), and before a grade exists every run is withheld while any item is.
 """
 
 from __future__ import annotations
@@ -68,15 +77,65 @@ def _withheld_by(session: Session, assignment: Assignment, student: User, now: d
     return {i: reason for i, reason in hidden.items() if reason}
 
 
-def shown_report(report: dict, hidden: dict[str, str]) -> dict:
+# Items the rubric decides by measurement (rubric.rubrics.ItemKind); a conceptual item's runs only illustrate it and
+# a config item is decided from the submitted configs.
+MEASURED_KINDS = ("measured", "computed")
+NOT_DECIDED = ("not_measured", "one_factor_violation")  # no measurement decided these verdicts
+
+
+def deciding_runs(item: dict, runs: list[str]) -> list[str]:
+    """The case runs (of `runs`, the submission's) whose measurements decide a stored report item: the runs its scoring
+    rule read (`backends`) where the rubric decides it by measurement; every run where such an item names none (its
+    rule read every run, as the engine version does); none for a conceptual or config item, or a verdict no
+    measurement decided."""
+    if item.get("kind") not in MEASURED_KINDS or item.get("verdict") in NOT_DECIDED:
+        return []
+    read = list(item.get("backends") or {})
+    return [r for r in runs if r in read] if read else list(runs)
+
+
+def withheld_runs(report: dict | None, hidden: dict[str, str], runs: list[str]) -> dict[str, str]:
+    """{case run name: why its measurements are withheld}: the runs deciding any withheld item of `report` (the
+    stored grade's), each with the items it decides and when they are shown. Without a report (not graded yet) every
+    run is withheld while any item is: nothing yet says which run decides which item."""
+    if not hidden:
+        return {}
+    if report is None:
+        why = "; ".join(sorted(set(hidden.values())))
+        return {r: f"decides withheld items ({', '.join(sorted(hidden))}), {why}" for r in runs}
+    decides: dict[str, list[str]] = {}
+    for item in report.get("items", []):
+        if item["id"] in hidden:
+            for run in deciding_runs(item, runs):
+                decides.setdefault(run, []).append(item["id"])
+    return {run: f"decides {', '.join(ids)}, " + "; ".join(sorted({hidden[i] for i in ids}))
+            for run, ids in sorted(decides.items())}
+
+
+def _evidence_withheld(item: dict, runs: dict[str, str]) -> dict:
+    """A shown item whose rule read a withheld run: its score and verdict stay, the measured values (its evidence,
+    what was measured and, for a measured item, the expected answer derived from them) wait with the run."""
+    names = [r for r in item.get("backends") or {} if r in runs]
+    masked = {"measured": "", "evidence": None, "evidence_withheld": names,
+              "feedback": (f"Verdict: {item['verdict'].replace('_', ' ')}. Evidence withheld: it reads the measurements "
+                           f"of {', '.join(names)}: " + "; ".join(f"{n} {runs[n]}" for n in names) + ".")}
+    if item.get("kind") in MEASURED_KINDS:
+        masked["expected"] = ""
+    return item | masked
+
+
+def shown_report(report: dict, hidden: dict[str, str], runs: list[str] | None = None) -> dict:
     """The stored report as a student may see it: each withheld item keeps its question, points and the student's
     own prediction, but its score is None and its feedback says when it will be shown; the total counts the shown
     items only and `pending` says which points are still to come. The lab check (its conditions' evidence is
     measured against the same tolerances) is left out until nothing is withheld. Nothing is regraded on release."""
     if not hidden:
         return report
+    withheld = withheld_runs(report, hidden, runs if runs is not None else _read_runs(report))
     items, total, shown_max, pending_points = [], 0.0, 0.0, 0.0
     for item in report.get("items", []):
+        if item["id"] not in hidden and set(item.get("backends") or {}) & set(withheld):
+            item = _evidence_withheld(item, withheld)
         if item["id"] in hidden:
             pending_points += item["points"]  # its worth, not max_score: that would tell an inconclusive one apart
             items.append({k: item[k] for k in ("id", "part", "kind", "question", "prediction", "points")}
@@ -93,7 +152,12 @@ def shown_report(report: dict, hidden: dict[str, str]) -> dict:
     # which item the grade's last override changed would tell a withheld one was overridden: left out while any is
     kept = {k: v for k, v in report.items() if k != "made_by_override"}
     return {**kept, "items": items, "total": round(total, 6), "max_total": max_total, "pending": note,
-            "check": None}
+            "check": None, "withheld_measurements": withheld}
+
+
+def _read_runs(report: dict) -> list[str]:
+    """Every run the report's items name (a report read without its submission's runs at hand)."""
+    return sorted({r for item in report.get("items", []) for r in item.get("backends") or {}})
 
 
 @dataclass(frozen=True)
@@ -133,7 +197,20 @@ class GradeView:
         """The report as this user may see it (the stored one where nothing is withheld)."""
         if not self.shown:
             return None
-        return shown_report(self.stored.report, self.hidden) if self.hidden else self.stored.report
+        return shown_report(self.stored.report, self.hidden, self.run_names) if self.hidden else self.stored.report
+
+    @property
+    def run_names(self) -> list[str]:
+        return [r.name for r in self.submission.case_runs]
+
+    @cached_property
+    def withheld_runs(self) -> dict[str, str]:
+        """{case run name: why} of the runs whose measurements this user may not see yet (see `withheld_runs`):
+        their series, metrics, provenance and evidence files. A function of `hidden`, the stored grade and the
+        submission's runs, which the report's validator (grader.api.etag.report_state) already covers."""
+        if not self.hidden:
+            return {}
+        return withheld_runs(self.stored.report if self.stored is not None else None, self.hidden, self.run_names)
 
     @property
     def total(self) -> float | None:

@@ -60,7 +60,11 @@ def test_a_free_submission_withholds_the_items_an_assignment_withholds_until_rel
         assert (items[i]["score"], items[i]["verdict"], items[i]["expected"], items[i]["evidence"]) == (
             None, "pending", "", None), items[i]
         assert f"withheld: shown once assignment {aid} is released" in items[i]["feedback"]
-    assert items["A1"] == by_id["A1"]  # what no assignment withholds is shown
+    # What no assignment withholds is shown; A1's evidence reads N4, whose measurement decides C1 (withheld), so its
+    # numbers wait with C1 (withholding per measurement, issue 31) while its score and verdict are shown.
+    a1, deciding = items["A1"], set(grade.json()["withheld_measurements"])
+    assert (a1["score"], a1["verdict"]) == (by_id["A1"]["score"], by_id["A1"]["verdict"])
+    assert a1["evidence"] is None and set(a1["evidence_withheld"]) == set(by_id["A1"]["backends"]) & deciding != set()
     shown_total = sum(i["score"] for i in staff["items"] if i["id"] not in withheld)
     assert grade.json()["total"] == round(shown_total, 6) and grade.json()["pending"].startswith(
         "8 of ")
