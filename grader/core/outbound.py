@@ -23,6 +23,7 @@ is opened.
 from __future__ import annotations
 
 import ipaddress
+import logging
 import socket
 import time
 from functools import lru_cache
@@ -40,6 +41,7 @@ from grader.settings import settings
 __all__ = ["OutboundError", "session", "url_refusal", "address_refusal"]
 
 IPAddress = ipaddress.IPv4Address | ipaddress.IPv6Address
+log = logging.getLogger(__name__)
 _SHARED = ipaddress.ip_network("100.64.0.0/10")  # carrier-grade NAT: neither private nor global
 
 
@@ -85,18 +87,19 @@ def _entry(text: str) -> tuple[str, int | None]:
 
 @lru_cache(maxsize=8)
 def _allow_list(entries: tuple[str, ...]) -> tuple[tuple[object, int | None], ...]:
+    """The parsed allow-list. An entry that is no host, address or network[:port] allows nothing (the policy fails
+    closed) and is logged once."""
     out = []
     for text in entries:
-        if not text.strip():
-            continue
         try:
             host, port = _entry(text)
-            try:
-                target: object = ipaddress.ip_network(host, strict=False)
-            except ValueError:
-                target = host.lower().rstrip(".")
-        except ValueError as exc:
-            raise ValueError(f"outbound_allowed_hosts: {text!r} is no host, address or network[:port]") from exc
+        except ValueError:
+            log.warning("OUTBOUND_ALLOWED_HOSTS: %r is no host, address or network[:port]; it allows nothing", text)
+            continue
+        try:
+            target: object = ipaddress.ip_network(host, strict=False)
+        except ValueError:
+            target = host.lower().rstrip(".")
         out.append((target, port))
     return tuple(out)
 
@@ -164,7 +167,7 @@ def url_refusal(url: str, *, resolve: bool = True) -> str | None:
     if resolve:
         try:
             infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
-        except (OSError, UnicodeError):
+        except (OSError, ValueError):  # no such name now, or not a name at all: a connection checks again
             return None
         for info in infos:
             refusal = address_refusal(host, ipaddress.ip_address(info[4][0].split("%")[0]), port)
