@@ -66,7 +66,8 @@ def _why(ip: IPAddress) -> str | None:
                 return f"{why or 'an IPv4 address'} inside IPv6 ({inner})"
     for kind, flag in (("an unspecified", ip.is_unspecified), ("a loopback", ip.is_loopback),
                        ("a link-local", ip.is_link_local), ("a multicast", ip.is_multicast),
-                       ("a private", ip.is_private), ("a shared (carrier-grade NAT)", ip.version == 4 and ip in _SHARED),
+                       ("a private", ip.is_private),
+                       ("a shared (carrier-grade NAT)", ip.version == 4 and ip in _SHARED),
                        ("a reserved", ip.is_reserved), ("a non-global", not ip.is_global)):
         if flag:
             return f"{kind} address"

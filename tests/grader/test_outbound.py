@@ -146,6 +146,38 @@ def test_a_launch_never_fetches_an_internal_key_set_url_stored_past_the_check(ap
     assert internal.seen == []  # refused before a connection: the internal server got no request
 
 
+def test_token_and_service_urls_stored_past_the_check_are_refused_when_fetched(api, internal, http_allowed):
+    """The registration's token URL and a launch's service URLs (gradebook, roster) naming the internal server, as
+    rows written around the checks: sending scores and syncing the roster fetch nothing and show no body."""
+    from grader.models import Course, LtiContext, LtiIdentity, LtiRegistration, User
+    from tests.grader.test_assignments import create
+    from tests.grader.test_lti import graded_attempt
+
+    aid = create(api).json()["id"]
+    with _session() as session:
+        course = session.scalar(select(Course).where(Course.name == "l03"))
+        row = LtiRegistration(course_id=course.id, issuer="https://lms.example.edu", client_id="ssrf-2",
+                              auth_login_url="https://lms.example.edu/auth", auth_token_url=internal.url,
+                              key_set_url="https://lms.example.edu/jwks")
+        session.add(row)
+        session.flush()
+        session.add(LtiContext(registration_id=row.id, context_id="ctx", lineitems_url=internal.url,
+                               memberships_url=internal.url,
+                               scopes=[f"https://purl.imsglobal.org/spec/lti-ags/scope/{name}"
+                                       for name in ("lineitem", "score")]))
+        alice = session.scalar(select(User).where(User.name == "alice", User.course_id == course.id))
+        session.add(LtiIdentity(registration_id=row.id, sub="lms-alice", user_id=alice.id))
+        session.commit()
+    graded_attempt(aid, "lms-alice", 1, 5.0)
+    sent = api.client.post(f"/v1/courses/l03/lti/assignments/{aid}/scores", headers=api.as_("prof"))
+    assert sent.status_code == 200 and SECRET not in sent.text
+    (score,) = sent.json()
+    assert score["status"] == "failed" and "127.0.0.1 is a loopback address" in score["error"]
+    roster = api.client.post("/v1/courses/l03/lti/roster-sync", headers=api.as_("prof"))
+    assert roster.status_code == 409 and SECRET not in roster.text and "loopback" in roster.json()["detail"]
+    assert internal.seen == []
+
+
 # --- the guard itself ------------------------------------------------------------------------------------------------
 
 def _fetch(url: str):
