@@ -6,6 +6,7 @@ lifecycle    every state change of a case run or a       grading      scoring a 
 rubrics      rubric versions and a course's current one  lab_check    the lab check of a submission's own runs
 audit        the audit log's vocabulary and re-runs      timezones    course time zones
 security     token hashing                               clock        the one "now" (frozen by tests, shifted by settings)
+outbound     every URL the server fetches, under one policy (https, public addresses, no redirects, size and time caps)
 
 With grader.settings and grader.models, the only part of grader that worker/ imports; it imports no service, web
 layer or worker module (import-linter contract core-neutral in pyproject.toml).
