@@ -84,14 +84,13 @@ NOT_DECIDED = ("not_measured", "one_factor_violation")  # no measurement decided
 
 
 def deciding_runs(item: dict, runs: list[str]) -> list[str]:
-    """The case runs (of `runs`, the submission's) whose measurements decide a stored report item: the runs its scoring
-    rule read (`backends`) where the rubric decides it by measurement; every run where such an item names none (its
-    rule read every run, as the engine version does); none for a conceptual or config item, or a verdict no
-    measurement decided."""
+    """The case runs whose measurements decide a stored report item: the runs its scoring rule read (`backends`, by
+    the names the grade gives them) where the rubric decides it by measurement; every one of `runs` (the submission's)
+    where such an item names none (its rule read every run, as the engine version does); none for a conceptual or
+    config item, or a verdict no measurement decided."""
     if item.get("kind") not in MEASURED_KINDS or item.get("verdict") in NOT_DECIDED:
         return []
-    read = list(item.get("backends") or {})
-    return [r for r in runs if r in read] if read else list(runs)
+    return list(item.get("backends") or {}) or list(runs)
 
 
 def withheld_runs(report: dict | None, hidden: dict[str, str], runs: list[str]) -> dict[str, str]:

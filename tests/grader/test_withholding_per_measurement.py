@@ -112,3 +112,34 @@ def test_a_report_whose_withheld_item_carries_an_override_does_not_say_every_sco
     assert api.client.post(f"/v1/assignments/{aid}/release", headers=api.as_("prof")).status_code == 200
     page = html.unescape(_get(api, f"/submissions/{sid}").text)
     assert 'id="override-A2"' in page and COMMENT in page and "every score is the measured one" not in page
+
+
+def _item(id_, kind, backends, verdict="credit", **over) -> dict:
+    return {"id": id_, "part": "A", "kind": kind, "question": f"question {id_}?", "prediction": "{}", "points": 1.0,
+            "score": 1.0, "max_score": 1.0, "verdict": verdict, "expected": f"expected {id_}",
+            "measured": f"measured {id_}", "evidence": {f"{id_}_value": 1.5}, "tolerances": {},
+            "backends": {b: "cpu" for b in backends}, "feedback": f"feedback {id_}"} | over
+
+
+def test_which_runs_decide_an_item_follows_its_kind_and_the_runs_its_rule_read():
+    """The rule on a stored report: a measured item's runs decide it, a conceptual or config item's do not, a measured
+    item naming no run read them all (the engine version of every run), and an unmeasured verdict decides none."""
+    from grader.services.visibility import shown_report, withheld_runs
+
+    runs = ["N1", "N2", "friction-baseline", "sheet.extension"]
+    report = {"items": [_item("A2", "measured", ["N1", "N2"]), _item("X2", "measured", ["N1", "sheet.extension"]),
+                        _item("A5", "conceptual", ["N1", "N2"]), _item("B2", "measured", ["friction-baseline"]),
+                        _item("H6", "measured", []), _item("H5", "config", []),
+                        _item("B1", "measured", ["friction-baseline"], verdict="not_measured")],
+              "total": 7.0, "max_total": 7.0}
+    why = "shown once assignment 1 is released by an instructor"
+    assert set(withheld_runs(report, {"A2": why}, runs)) == {"N1", "N2"}
+    assert withheld_runs(report, {"A5": why, "H5": why, "B1": why}, runs) == {}
+    assert set(withheld_runs(report, {"H6": why}, runs)) == set(runs)
+    assert withheld_runs(None, {"A5": why}, runs).keys() == set(runs)  # not graded yet: nothing says which run decides
+    shown = {i["id"]: i for i in shown_report(report, {"A2": why}, runs)["items"]}
+    assert shown["X2"]["evidence"] is None and shown["X2"]["measured"] == shown["X2"]["expected"] == ""
+    assert shown["X2"]["evidence_withheld"] == ["N1"] and shown["X2"]["score"] == 1.0
+    assert "measured X2" not in shown["X2"]["feedback"] and "N1 decides A2, " + why in shown["X2"]["feedback"]
+    assert shown["A5"]["expected"] == "expected A5" and shown["A5"]["measured"] == ""  # a conceptual answer stays
+    assert shown["B2"] == report["items"][3]  # reads no deciding run: shown whole
