@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from grader.core import warmth
 from grader.core.lifecycle import NEW_PRIORITY, REQUEUED_PRIORITY, RERUN_PRIORITY
 
 
@@ -37,12 +38,18 @@ EMBEDDED_QUEUES = ("cpu", "grade")  # what the embedded service's one worker con
 def queue_listeners(queue: str, *, timeout_s: float = 1.0) -> list[str]:
     """Names of the Celery workers consuming `queue` now, asked over the broker (remote control, `timeout_s`).
 
-    The embedded filesystem broker has no broadcast: there the answer is its one local worker's queues.
+    The embedded filesystem broker has no broadcast: there the answer is its one local worker's queues. A worker
+    warming up (grader.core.warmth) listens too: it consumes its case queues once warm.
     """
     workers = live_workers(timeout_s=timeout_s)
     if workers is None:
         return ["embedded worker"] if queue in EMBEDDED_QUEUES else []
-    return sorted(name for name, queues in workers.items() if queue in queues)
+    listening = {name for name, queues in workers.items() if queue in queues}
+    try:  # a worker warming up holds its case queues back (worker.warm_gate), yet a run sent there is for it
+        listening |= {w.name for w in warmth.live() or [] if queue in w.queues}
+    except Exception:  # noqa: BLE001 - what remote control answered stands
+        pass
+    return sorted(listening)
 
 
 def queue_depths() -> dict[str, int | None]:

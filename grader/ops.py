@@ -1,9 +1,10 @@
 """What an operator watches: queue depth per queue, case runs by state and backend, case durations, failures by
-reason, stuck runs and live workers. Served as Prometheus metrics (`GET /metrics`, prometheus_client) and printed
+reason, stuck runs, live workers and their warm case slots. Served as Prometheus metrics (`GET /metrics`, prometheus_client) and printed
 by `grader status`; both read `service_status`, so they never disagree."""
 
 from __future__ import annotations
 
+import time
 from collections import Counter
 
 from prometheus_client.core import GaugeMetricFamily, HistogramMetricFamily
@@ -13,7 +14,7 @@ from sqlalchemy.orm import Session
 
 from grader import dispatch
 from grader.models import CaseRun, Grade, LtiOutbox, Submission, utcnow
-from grader.core import lifecycle
+from grader.core import lifecycle, warmth
 from grader.core.states import CaseRunState
 
 DURATION_BUCKETS_S = (1, 2, 5, 10, 20, 30, 60, 120, 300, 600, 900)
@@ -30,6 +31,9 @@ class ServiceStatus(BaseModel):
     lti_failing: int = 0  # assignments whose scores the LMS gradebook refused last (grader.services.lti_outbox)
     durations_s: list[float]  # wall time of every case measured (not reused), for the histogram
     broker_error: str | None = None
+    # Each live worker's case slots, warm or warming (grader.core.warmth); None: the broker keeps no such record
+    warmth: list[dict] | None = None
+    last_warm_up_s: float | None = None  # how long the last finished warm-up took, start to every slot warm
 
 
 def failure_reason(run: CaseRun) -> str:
@@ -56,6 +60,11 @@ def service_status(session: Session, *, timeout_s: float = 1.0) -> ServiceStatus
         queues, workers = dispatch.queue_depths(), dispatch.live_workers(timeout_s=timeout_s)
     except Exception as exc:  # noqa: BLE001 - the broker down is itself the thing to see
         queues, workers, broker_error = {}, {}, f"{type(exc).__name__}: {exc}"
+    try:
+        live, last_warm_up = warmth.live(), warmth.last_warm_up_s()
+    except Exception as exc:  # noqa: BLE001 - as above: unknown, never "no worker"
+        live, last_warm_up = None, None
+        broker_error = broker_error or f"{type(exc).__name__}: {exc}"
     by_state: dict[str, dict[str, int]] = {}
     for backend, state, n in session.execute(
             select(CaseRun.backend, CaseRun.status, func.count()).group_by(CaseRun.backend, CaseRun.status)):
@@ -75,7 +84,12 @@ def service_status(session: Session, *, timeout_s: float = 1.0) -> ServiceStatus
             select(Submission.status, func.count()).group_by(Submission.status)).all()),
         case_runs_by_state=by_state, failures_by_reason=dict(Counter(failure_reason(r) for r in failed)),
         stuck_case_runs=stuck or 0, grades_drawing=drawing or 0, durations_s=[float(d) for d in durations],
-        lti_failing=lti_failing or 0)
+        lti_failing=lti_failing or 0, last_warm_up_s=last_warm_up,
+        warmth=None if live is None else [{"worker": w.name, "queues": list(w.queues), "slots": w.slots,
+                                           "warm": w.warm, "consuming": w.consuming, "warm_s": w.warm_s,
+                                           "warming_for_s": None if w.consuming else max(0.0, time.time() -
+                                                                                          w.started_at)}
+                                          for w in live])
 
 
 class StatusCollector:
@@ -102,6 +116,22 @@ class StatusCollector:
                 for queue in queues:
                     workers.add_metric([name, queue], 1)
             yield workers
+        if status.warmth is not None:
+            slots = GaugeMetricFamily("grader_worker_slots", "A live worker's case slots, warm or warming; it takes "
+                                      "no case until every slot is warm", labels=["worker", "state"])
+            consuming = GaugeMetricFamily("grader_worker_consuming_cases", "1 once a worker's slots are all warm and "
+                                          "it consumes its case queues, 0 while it warms up", labels=["worker"])
+            for w in status.warmth:
+                slots.add_metric([w["worker"], "warm"], w["warm"])
+                slots.add_metric([w["worker"], "warming"], w["slots"] - w["warm"])
+                consuming.add_metric([w["worker"]], 1 if w["consuming"] else 0)
+            yield slots
+            yield consuming
+        if status.last_warm_up_s is not None:
+            last = GaugeMetricFamily("grader_last_warm_up_seconds", "How long the last worker took from its start to "
+                                     "every case slot warm")
+            last.add_metric([], status.last_warm_up_s)
+            yield last
         submissions = GaugeMetricFamily("grader_submissions", "Submissions by state", labels=["state"])
         for state, n in status.submissions_by_state.items():
             submissions.add_metric([state], n)

@@ -52,6 +52,10 @@ class Settings(BaseSettings):
     # ROCm worker sets rocm (docker-compose.yml); a warm-up that fails is logged, and the first case then fails
     # visibly as it would have.
     warm_up_backend: Literal["cpu", "rocm", "cuda", "off"] = "cpu"
+    # Case slots per worker (Celery prefork children, each with its own warm case process), so one submission's runs
+    # execute side by side. 0: one per core this process may run on, no more than the host's memory holds at
+    # case_memory_limit_mb each (worker.celery_app.worker_concurrency). One case steps on one thread (docs/benchmark.md).
+    worker_concurrency: int = Field(0, ge=0, le=256)
     # The API runs sync handlers and dependencies on this many threads (anyio's default is 40) and admits this many
     # requests at once; the rest wait unserved, holding no thread and no connection. Each engine's pool keeps as many
     # connections, so an admitted request never waits on the pool while holding a connection that a request waiting

@@ -234,6 +234,10 @@ class WarmCaseProcess:
         self._proc: subprocess.Popen | None = None
         self._reply = None
         self._log = None
+        # A process started to warm up answers one line when its warm-up is done, before any case's; this thread
+        # reads it (`wait_warm`), so a case sent meanwhile waits for it and never reads it as its own answer.
+        self._warming: threading.Thread | None = None
+        self.warm_up: dict | None = None  # that line: {"warm_up_s": seconds, "ok": bool}, once read
 
     def __enter__(self) -> "WarmCaseProcess":
         return self
@@ -241,12 +245,40 @@ class WarmCaseProcess:
     def __exit__(self, *exc) -> None:
         self.close()
 
-    def start(self) -> None:
+    def start(self, on_warm: Callable[[dict], None] | None = None) -> None:
         """Start the process now rather than on the first case; it warms up, if asked, while nothing waits on it.
-        A process started on a case (the first, or after a recycle or a failure) does not: a case is waiting."""
+        A process started on a case (the first, or after a recycle or a failure) does not: a case is waiting.
+
+        `on_warm(line)` is called (on a thread of its own) once the warm-up is done, failed or not (`ok` says), or
+        at once when there is nothing to warm up."""
         if self._proc is None or self._proc.poll() is not None:
             self.close()
             self._start(warm_up=True)
+            if self.warm_up_backend is not None:
+                self._warming = threading.Thread(target=self._read_warm_up, args=(self._reply, on_warm), daemon=True,
+                                                 name=f"warm-up-{self._proc.pid}")
+                self._warming.start()
+                return
+        if on_warm is not None and self._warming is None:
+            on_warm({"warm_up_s": 0.0, "ok": True})
+
+    def _read_warm_up(self, reply, on_warm) -> None:
+        line = reply.readline()  # "" when the process died warming up: the next case starts a new one
+        try:
+            self.warm_up = json.loads(line) if line else {"warm_up_s": None, "ok": False}
+        except ValueError:
+            self.warm_up = {"warm_up_s": None, "ok": False}
+        if on_warm is not None:
+            on_warm(self.warm_up)
+
+    def wait_warm(self, timeout_s: float | None = None) -> bool:
+        """Wait until the warm-up line was read (True), or `timeout_s` passed (False); True when none is pending."""
+        if self._warming is not None:
+            self._warming.join(timeout_s)
+            if self._warming.is_alive():
+                return False
+            self._warming = None
+        return True
 
     def _start(self, *, warm_up: bool = False) -> None:
         read_fd, write_fd = os.pipe()
@@ -277,6 +309,9 @@ class WarmCaseProcess:
         except (subprocess.TimeoutExpired, OSError):
             self._proc.kill()
             self._proc.wait()
+        if self._warming is not None:
+            self._warming.join(5)  # the process is gone: its reader sees the end of the pipe
+        self._warming = None
         self._reply.close()
         self._log.close()
         self._proc = self._reply = self._log = None
@@ -289,6 +324,13 @@ class WarmCaseProcess:
             memory_limit_mb: int = DEFAULT_MEMORY_LIMIT_MB) -> CaseResult:
         """Run one case; the process (whatever earlier cases left in it) is held to the memory limit meanwhile."""
         out_dir = Path(out_dir)
+        started = time.perf_counter()
+        if not self.wait_warm(timeout_s):  # a case sent while the process warms up waits for it, within its limit
+            self._proc.kill()
+            self.close()
+            _prepare(spec, out_dir)
+            return load_result(spec, out_dir, exit_status=None, mode="warm",
+                               wall_s=time.perf_counter() - started, timeout_s=timeout_s)
         if self._proc is None or self._proc.poll() is not None or self.cases_run >= self.max_cases:
             self.close()
             self._start()

@@ -4,8 +4,11 @@ A grade's figures and lab check (`complete_grade`, drawn after the grade is stor
 priority (grader.core.lifecycle.FIGURES_PRIORITY): a CPU worker draws them when no case waits, so under a deadline's
 load the cases and grades of every submission come before any figure.
 
-Worker commands (one per queue; concurrency 1 because each slot holds a ~0.8 GB warm Genesis process), built by
-`worker_argv` for `grader worker` and the embedded service:
+Worker commands (one per queue), built by `worker_argv` for `grader worker` and the embedded service. Each worker has
+`worker_concurrency` case slots (prefork processes), each holding its own ~0.8 GB warm Genesis process: one per core
+by default, as many as memory holds at the case memory limit; a case steps on one thread, so a submission's runs on
+two slots take about the time of the longer one (docs/benchmark.md). A worker consumes its case queues only once
+every slot is warm (worker.warm_gate):
   cpu   grader worker --queue cpu --queue grade
   rocm  grader worker --queue rocm     (ROCm torch image, /dev/kfd, /dev/dri)
   cuda  grader worker --queue cuda
@@ -22,6 +25,7 @@ reconciler covers. Deployment uses Redis (BROKER_URL=redis://...).
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Sequence
 
@@ -31,6 +35,7 @@ from kombu.transport import TRANSPORT_ALIASES
 
 from grader.core.states import Backend, values
 from grader.settings import settings
+from worker.warm_gate import WarmGate
 
 # filesystem:// is kombu's filesystem transport serving messages by priority (worker.filesystem_broker), in every
 # process that sends or consumes: a re-sent run goes ahead of the queue as it does on Redis.
@@ -64,6 +69,18 @@ GRADE_TASK = "worker.tasks.grade_submission"
 COMPLETE_TASK = "worker.tasks.complete_grade"
 FIGURES_QUEUE = "cpu"  # figures are CPU work, drawn behind the waiting case runs (see the module's docstring)
 
+def worker_concurrency() -> int:
+    """Case slots per worker: settings.worker_concurrency, or (0) one per core this process may run on (its CPU
+    affinity: a container's cpuset), no more than the host's memory holds with every slot at case_memory_limit_mb."""
+    if settings.worker_concurrency:
+        return settings.worker_concurrency
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    if settings.case_memory_limit_mb and hasattr(os, "sysconf"):
+        memory_mb = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") // 2**20
+        return max(1, min(cores, memory_mb // settings.case_memory_limit_mb))
+    return max(1, cores)
+
+
 app = Celery("grader", broker=settings.broker_url, include=["worker.tasks"])
 app.conf.update(
     task_queues=[Queue(name) for name in (*BACKEND_QUEUES, GRADE_QUEUE)],
@@ -75,6 +92,10 @@ app.conf.update(
     task_acks_late=True,
     task_reject_on_worker_lost=True,
     worker_prefetch_multiplier=1,
+    worker_concurrency=worker_concurrency(),
+    # A pool process blocks in nothing at its start (its slot warms up on threads of its own), yet on a loaded host
+    # its init may take longer than Celery's 4 s; a pool process given up on is a slot lost and replaced again.
+    worker_proc_alive_timeout=60,
     task_ignore_result=True,
     # worker.case_process stops a case at case_time_limit_s and returns a timeout result; these only catch a hung task.
     task_soft_time_limit=settings.case_time_limit_s + 60,
@@ -85,13 +106,15 @@ app.conf.update(
     broker_transport_options=transport_options(settings.broker_url),
     worker_hijack_root_logger=False,
 )
+app.steps["consumer"].add(WarmGate)  # case queues consumed only once every slot is warm
 
 
 def worker_argv(queues: Sequence[str], *, name: str, loglevel: str = "info", heartbeat: bool = True) -> list[str]:
-    """The command line of one Celery worker slot on `queues`: prefork, concurrency 1, no gossip or mingle.
+    """The command line of one Celery worker on `queues`: prefork, no gossip or mingle; its slots are
+    worker_concurrency() as the worker's own environment sets it (WORKER_CONCURRENCY), read where it starts.
 
     heartbeat=False also drops worker heartbeats (the embedded service, one worker on a filesystem broker).
     """
-    argv = [sys.executable, "-m", "celery", "-A", "worker.celery_app", "worker", "-Q", ",".join(queues), "-c", "1",
+    argv = [sys.executable, "-m", "celery", "-A", "worker.celery_app", "worker", "-Q", ",".join(queues),
             "--pool", "prefork", "-n", name, "--loglevel", loglevel, "--without-gossip", "--without-mingle"]
     return argv if heartbeat else [*argv, "--without-heartbeat"]

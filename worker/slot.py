@@ -7,6 +7,7 @@ process shuts down.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 from grader.settings import settings
@@ -33,16 +34,19 @@ def _new_warm_process():
                            warm_up_backend=backend)
 
 
-def start_slot() -> None:
+def start_slot(on_warm: Callable[[dict], None] | None = None) -> None:
     """Start this slot's warm case process with the worker process (settings.warm_up_backend), so that it imports
     Genesis and loads the lesson's kernels before the first case arrives. Returns at once: the process warms up on
-    its own and the first case waits for it only if it comes sooner."""
+    its own; `on_warm(line)` is called once it is warm (worker.warm_gate opens the worker's case queues when every
+    slot is), at once when nothing is to warm up (isolated mode, warm-up off)."""
     global _warm_process
     if settings.execution_mode != "warm" or settings.warm_up_backend == "off":
+        if on_warm is not None:
+            on_warm({"warm_up_s": 0.0, "ok": True})
         return
     if _warm_process is None:
         _warm_process = _new_warm_process()
-    _warm_process.start()
+    _warm_process.start(on_warm)
 
 
 def close_slot() -> None:

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import logging
 
-from celery.signals import worker_init, worker_process_init, worker_process_shutdown
+from celery.signals import (celeryd_after_setup, worker_init, worker_process_init, worker_process_shutdown,
+                            worker_shutdown)
 from kombu.exceptions import OperationalError as BrokerError
 from sqlalchemy.exc import OperationalError as DatabaseError
 from sqlalchemy.orm import Session
@@ -15,7 +16,7 @@ from sqlalchemy.orm import Session
 from grader.core import lifecycle
 from grader.core.db import make_engine, new_session
 from grader.settings import settings
-from worker import grading, slot
+from worker import grading, slot, warm_gate
 from worker.audit import audit_finished_run
 from worker.case_run import process_case_run
 from worker.celery_app import FIGURES_QUEUE, GRADE_QUEUE, app
@@ -60,7 +61,19 @@ def _close_slot(**_) -> None:
 
 @worker_process_init.connect
 def _start_slot(**_) -> None:
-    slot.start_slot()  # returns at once (Celery gives a process's init a few seconds)
+    warm_gate.slot_cold()
+    slot.start_slot(warm_gate.slot_warm)  # returns at once; the slot's flag is set once its case process is warm
+
+
+@celeryd_after_setup.connect
+def _hold_case_queues(sender, instance, **_) -> None:
+    """No case until every slot is warm (worker.warm_gate): the case queues wait, the grade queue is consumed."""
+    warm_gate.hold(name=sender, app=instance.app, slots=instance.concurrency)
+
+
+@worker_shutdown.connect
+def _forget_warmth(**_) -> None:
+    warm_gate.forget()
 
 
 @worker_init.connect

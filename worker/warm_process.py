@@ -3,7 +3,8 @@
 Started with a backend to warm up, it first builds the lesson's two scene structures (`warm_up`), then serves.
 
 Protocol: the parent writes one JSON line per case ({"spec": path, "out_dir": path, "reuse": bool}) on stdin; this process answers
-one JSON line ({"exit_status": int}) on the file descriptor given as argv[1]. During each case, fds 1 and 2 point at
+one JSON line ({"exit_status": int}) on the file descriptor given as argv[1], after one line ({"warm_up_s": float, "ok":
+bool}) when it was started to warm up. During each case, fds 1 and 2 point at
 that case's stdout.txt / stderr.txt, so evidence is captured per case exactly as in isolated mode.
 """
 
@@ -43,11 +44,11 @@ WARM_UP_CASES = ("N1", "friction-baseline")  # the lesson's two scene structures
 WARM_UP_DONE = "warm case process warmed up"  # the line it writes to the worker's log when done
 
 
-def warm_up(backend: str, reuse: bool) -> None:
+def warm_up(backend: str, reuse: bool) -> dict:
     """Build and run the lesson's two scene structures on `backend` into a folder removed after, before any case:
     Genesis imported and initialised, kernels loaded, and (with reuse) both scenes kept for the first cases. What it
     did, or why it failed, goes to its stderr, the worker's own log (one WARM_UP_DONE line); a real case never
-    depends on it."""
+    depends on it. Returns the line the parent reads: {"warm_up_s": seconds, "ok": every structure ran}."""
     # lazy: worker.engine only inside the case process; parents import this module for WARM_UP_DONE
     from .engine import run_case_in_genesis
 
@@ -64,8 +65,10 @@ def warm_up(backend: str, reuse: bool) -> None:
                 traceback.print_exc()
                 statuses[name] = "raised"
     outcome = ", ".join(f"{name} exit {status}" for name, status in statuses.items())
-    print(f"{WARM_UP_DONE} on {backend} in {time.perf_counter() - started:.1f} s ({outcome}; pid {os.getpid()})",
-          file=sys.stderr, flush=True)
+    seconds = time.perf_counter() - started
+    print(f"{WARM_UP_DONE} on {backend} in {seconds:.1f} s ({outcome}; pid {os.getpid()})", file=sys.stderr,
+          flush=True)
+    return {"warm_up_s": round(seconds, 3), "ok": all(status == 0 for status in statuses.values())}
 
 
 def main(reply_fd: int, warm_up_backend: str | None = None, reuse: bool = False) -> int:
@@ -73,9 +76,10 @@ def main(reply_fd: int, warm_up_backend: str | None = None, reuse: bool = False)
     # lazy: worker.engine only inside the case process; parents import this module for WARM_UP_DONE
     from .engine import run_case_in_genesis
 
-    if warm_up_backend:
-        warm_up(warm_up_backend, reuse)
     reply = os.fdopen(reply_fd, "w", buffering=1)
+    if warm_up_backend:
+        # One line before any case's: the parent (worker.case_process.WarmCaseProcess.start) is told it is warm.
+        reply.write(json.dumps(warm_up(warm_up_backend, reuse)) + "\n")
     for line in sys.stdin:
         request = json.loads(line)
         out_dir = Path(request["out_dir"])

@@ -210,6 +210,12 @@ def status(timeout_s: float) -> None:
     else:
         click.echo(f"workers:  {len(s.workers)} live" + "".join(f"\n  {name}: {', '.join(queues)}"
                                                              for name, queues in s.workers.items()))
+    for w in s.warmth or []:
+        click.echo(f"  {w['worker']}: {w['warm']} of {w['slots']} case slots warm, " + (
+            f"taking cases (warmed up in {w['warm_s']:.1f} s)" if w["consuming"] else
+            f"WARMING UP for {w['warming_for_s']:.0f} s, no case taken yet"))
+    if s.warmth is not None and s.last_warm_up_s is not None:
+        click.echo(f"last warm-up: {s.last_warm_up_s:.1f} s from a worker's start to every slot warm")
     click.echo("submissions: " + (", ".join(f"{k} {v}" for k, v in sorted(s.submissions_by_state.items())) or "none"))
     for backend, states in sorted(s.case_runs_by_state.items()):
         click.echo(f"case runs on {backend}: " + ", ".join(f"{k} {v}" for k, v in sorted(states.items())))

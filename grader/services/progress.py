@@ -5,11 +5,13 @@ page and its polled JSON (grader.pages.progress)."""
 from __future__ import annotations
 
 import statistics
+import time
 from dataclasses import dataclass
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from grader.core import warmth
 from grader.core.lifecycle import NEW_PRIORITY, REQUEUED_PRIORITY, fair_priority
 from grader.core.states import CaseRunPurpose, CaseRunState, SubmissionState
 from grader.models import CaseRun, Submission, User
@@ -44,6 +46,14 @@ class RunProgress:
 
 
 @dataclass(frozen=True)
+class WarmingUp:
+    """No worker on the queue a run waits on is warm yet, and one is warming up (grader.core.warmth)."""
+
+    for_s: float  # how long the longest-warming of them has been at it
+    last_s: float | None  # how long the last finished warm-up took; None: none finished yet
+
+
+@dataclass(frozen=True)
 class Progress:
     submission: Submission
     status: str
@@ -52,6 +62,7 @@ class Progress:
     ahead_s: float | None  # measured case time queued ahead of this submission's first waiting run; None: unknown
     ahead_unmeasured: int  # runs ahead whose case was never measured (not in ahead_s)
     own_s: float | None  # measured case time of this submission's unfinished runs; None: one is unmeasured
+    warming_up: "WarmingUp | None" = None  # its runs wait for workers still warming up (none warm on their queue)
 
     @property
     def finished(self) -> bool:
@@ -80,7 +91,27 @@ def submission_progress(*, session: Session, user: User, submission_id: int) -> 
     own = None if any(row.typical_s is None for row in unfinished) else sum(row.typical_s for row in unfinished)
     return Progress(submission=submission, status=submission.status, runs=rows,
                     running_on_backend={b: _running(session, b) for b in backends},
-                    ahead_s=ahead_s, ahead_unmeasured=unmeasured, own_s=own)
+                    ahead_s=ahead_s, ahead_unmeasured=unmeasured, own_s=own, warming_up=warming_up(backends))
+
+
+def warming_up(backends: list[str]) -> WarmingUp | None:
+    """Whether runs queued on `backends` wait for a warm-up: no live worker consuming one of them, one warming up
+    that listens on it. None when not (or not knowable: a broker that keeps no record, or one that did not answer)."""
+    if not backends:
+        return None
+    try:
+        live = warmth.live()
+        if live is None:
+            return None
+        warm, warming = warmth.warm_backends(live)
+        cold = [b for b in backends if b in warming and b not in warm]
+        if not cold:
+            return None
+        last = warmth.last_warm_up_s()
+    except Exception:  # noqa: BLE001 - the page must show without this line rather than fail on a broker hiccup
+        return None
+    since = min(w.started_at for w in live if not w.consuming and set(w.queues) & set(cold))
+    return WarmingUp(for_s=max(0.0, time.time() - since), last_s=last)
 
 
 def _row(run: CaseRun, place: tuple[int, int] | None, typical: tuple[float | None, int]) -> RunProgress:
@@ -194,6 +225,8 @@ def as_json(progress: Progress) -> dict:
         "report_url": f"/submissions/{s.id}", "counts": progress.counts,
         "ahead_s": progress.ahead_s, "ahead_unmeasured": progress.ahead_unmeasured, "own_s": progress.own_s,
         "running_on_backend": progress.running_on_backend,
+        "warming_up": None if progress.warming_up is None else {"for_s": progress.warming_up.for_s,
+                                                                "last_s": progress.warming_up.last_s},
         "runs": [{"id": r.id, "name": r.name, "backend": r.backend, "status": r.status,
                   "result_status": r.result_status, "reused": r.reused, "position": r.position,
                   "waiting": r.waiting, "typical_s": r.typical_s, "measured_runs": r.measured_runs,

@@ -130,7 +130,9 @@ def test_a_whole_worker_killed_mid_case_is_noticed_by_liveness_not_its_lease(sta
     worker holds it, and the submission is graded once."""
     from grader.reconcile import LIVENESS_GRACE_S, RECONCILE_EVERY_S
 
-    victim_worker = services.start_worker(stack.env, "cpu", stack.logs / "worker-victim.log")
+    # warm: a worker takes no case until its slots are warm (worker.warm_gate), and a cold one would see the stack's
+    # warm worker take every run first
+    victim_worker = services.start_worker(stack.env, "cpu", stack.logs / "worker-victim.log", warm=True)
     reconciler = subprocess.Popen([sys.executable, "-m", "grader.cli", "reconcile", "--every", str(RECONCILE_EVERY_S)],
                                   cwd=services.ROOT, env=stack.env, stdout=(stack.logs / "reconciler.log").open("ab"),
                                   stderr=subprocess.STDOUT, start_new_session=True)

@@ -19,6 +19,9 @@ import httpx
 ROOT = Path(__file__).resolve().parent.parent.parent
 # Safety stop for waits on real processes; never a claim about speed.
 STARTUP_LIMIT_S = 120
+# The same for a worker's warm-up (every case slot's Genesis process loading its kernels and building the lesson's
+# scenes, all at once): ~20 s on an idle 2-core host, 305 s seen with two slots on one loaded by other jobs.
+WARM_UP_LIMIT_S = 900
 
 
 def free_port() -> int:
@@ -39,16 +42,28 @@ def wait_for(predicate: Callable[[], bool], what: str, proc: subprocess.Popen, l
         time.sleep(0.2)
 
 
-def start_worker(env: dict, queues: str, log: Path) -> subprocess.Popen:
-    """A real Celery worker process (prefork, one slot), returned once it says it is ready."""
+def start_worker(env: dict, queues: str, log: Path, *, warm: bool = False) -> subprocess.Popen:
+    """A real Celery worker process (prefork, WORKER_CONCURRENCY slots from `env`, else one per core), returned once
+    it says it is ready; with `warm`, once its case slots are warm and it consumes its case queues (until then it
+    takes no case: worker.warm_gate)."""
     # lazy: worker.celery_app loads Celery and makes filesystem-broker folders on import; only start_worker needs it
     from worker.celery_app import worker_argv
+    from worker.warm_gate import OPENED
 
     command = worker_argv(queues.split(","), name=f"{queues.replace(',', '-')}-{uuid.uuid4().hex[:6]}@%h",
                           heartbeat=False)
+    offset = log.stat().st_size if log.exists() else 0  # a log appended to again: only this worker's lines count
+
+    def said(words: str) -> bool:
+        with log.open("rb") as f:
+            f.seek(offset)
+            return words in f.read().decode(errors="replace")
+
     proc = subprocess.Popen(command, cwd=ROOT, env=env, stdout=log.open("ab"), stderr=subprocess.STDOUT,
                             start_new_session=True)
-    wait_for(lambda: " ready." in log.read_text(errors="replace"), "celery worker", proc, log)
+    wait_for(lambda: said(" ready."), "celery worker", proc, log)
+    if warm:
+        wait_for(lambda: said(OPENED), "celery worker's warm-up", proc, log, limit_s=WARM_UP_LIMIT_S)
     return proc
 
 

@@ -95,8 +95,11 @@ def _people(engine, students: int) -> tuple[dict[str, str], list[str]]:
 
 
 @contextlib.contextmanager
-def service_stack(kind: str, folder: Path, *, students: int = 1) -> Iterator[Stack]:
-    """Start the API and one CPU worker (`cpu,grade` queues) over `kind`'s database and broker; stop them after."""
+def service_stack(kind: str, folder: Path, *, students: int = 1, worker_env: dict | None = None,
+                  warm: bool = False) -> Iterator[Stack]:
+    """Start the API and one CPU worker (`cpu,grade` queues) over `kind`'s database and broker; stop them after.
+    `worker_env` adds to the environment of both (WORKER_CONCURRENCY=1); `warm`: yielded once the worker's case
+    slots are warm (worker.warm_gate), not as soon as it is ready."""
     if kind not in KINDS:
         raise ValueError(f"unknown stack {kind!r}; one of {', '.join(KINDS)}")
     data_dir = (folder / f"{kind}-{uuid.uuid4().hex[:6]}").absolute()
@@ -116,11 +119,11 @@ def service_stack(kind: str, folder: Path, *, students: int = 1) -> Iterator[Sta
                    # The benchmark submits far faster than a student may; the limit is not what it measures.
                    RATE_LIMIT_SUBMISSIONS="100000/minute", STUDENT_WAITING_RUNS_MAX="100000",
                    # Its concurrent clients all come from 127.0.0.1, which the per-client cap would count as one.
-                   CLIENT_MAX_IN_FLIGHT="10000")
+                   CLIENT_MAX_IN_FLIGHT="10000") | (worker_env or {})
         port = free_port()
         api = start_api(env, port, data_dir / "api.log")
         cleanup.callback(stop, api)
-        worker = start_worker(env, "cpu,grade", data_dir / "worker.log")
+        worker = start_worker(env, "cpu,grade", data_dir / "worker.log", warm=warm)
         cleanup.callback(stop, worker)
         yield Stack(kind, f"http://127.0.0.1:{port}", database_url, env, data_dir, tokens, engine, worker, api,
                     names)
