@@ -1,5 +1,6 @@
 """What an operator watches: queue depth per queue, case runs by state and backend, case durations, failures by
-reason, stuck runs, live workers and their warm case slots. Served as Prometheus metrics (`GET /metrics`, prometheus_client) and printed
+reason, stuck runs, live workers and their warm case slots.
+Served as Prometheus metrics (`GET /metrics`, prometheus_client) and printed
 by `grader status`; both read `service_status`, so they never disagree."""
 
 from __future__ import annotations

@@ -87,7 +87,8 @@ def token(course: str | None, name: str | None, role: str | None, expires_in: in
               type=click.Choice([*values(Backend), "grade"]), help="Queues to consume (repeatable).")
 @click.option("--loglevel", default="info", show_default=True)
 def worker(queues: tuple[str, ...], loglevel: str) -> None:
-    """Run a Celery worker: one slot holding one warm Genesis process (prefork, concurrency 1)."""
+    """Run a Celery worker: WORKER_CONCURRENCY case slots (default one per core), each holding its own warm Genesis
+    process; it takes cases once every slot is warm."""
     # lazy: loads Celery and makes the filesystem broker's folders on import; only `grader worker` needs it
     from worker.celery_app import worker_argv
 

@@ -64,12 +64,17 @@ def _kill_tree(pid: int) -> None:
 
 
 def _start_worker(env: dict, name: str, queues: tuple[str, ...], log: Path, *, heartbeat: bool = True):
-    """The shipped worker command (`worker_argv`); returns the process and the UTC time it said ready."""
+    """The shipped worker command (`worker_argv`); returns the process and the UTC time it took cases: once its
+    case slots are warm (worker.warm_gate: until then it takes none, and the runs wait in the broker)."""
+    from tools.bench.processes import WARM_UP_LIMIT_S
     from worker.celery_app import worker_argv
+    from worker.warm_gate import OPENED
 
     proc = subprocess.Popen(worker_argv(queues, name=f"{name}@%h", heartbeat=heartbeat), cwd=services.ROOT, env=env,
                             stdout=log.open("ab"), stderr=subprocess.STDOUT, start_new_session=True)
     services.wait_for(lambda: " ready." in log.read_text(errors="replace"), "celery worker", proc, log)
+    services.wait_for(lambda: OPENED in log.read_text(errors="replace"), "celery worker's warm-up", proc, log,
+                      limit_s=WARM_UP_LIMIT_S)
     return proc, utcnow()
 
 

@@ -63,8 +63,9 @@ def seen(tmp_path_factory):
     with Session(engine) as session:
         tokens = create_people(session, course="l03-test", other_course="other-course")
         session.commit()
-    env = dict(os.environ, DATABASE_URL=database_url, BROKER_URL=url, DATA_DIR=str(folder), PYTHONPATH=str(services.ROOT),
-               WORKER_CONCURRENCY=str(SLOTS), CASE_TIME_LIMIT_S="600", RATE_LIMIT_SUBMISSIONS="1000/minute")
+    env = dict(os.environ, DATABASE_URL=database_url, BROKER_URL=url, DATA_DIR=str(folder),
+               PYTHONPATH=str(services.ROOT), WORKER_CONCURRENCY=str(SLOTS), CASE_TIME_LIMIT_S="600",
+               RATE_LIMIT_SUBMISSIONS="1000/minute")
     port = services.free_port()
     api = services.start_api(env, port, folder / "api.log")
     worker = services.start_worker(env, "cpu,grade", folder / "worker.log")

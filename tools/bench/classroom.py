@@ -15,9 +15,10 @@ from sqlalchemy.orm import Session
 
 from grader.models import Grade, Submission
 from grader.settings import settings
-from worker.warm_process import WARM_UP_DONE
+from worker.warm_gate import OPENED
 
 from tools.bench.cases import BenchFailure
+from tools.bench.processes import WARM_UP_LIMIT_S
 from tools.bench.submission import WAIT_LIMIT_S, reference_sheet
 
 # 20 table frictions (the lesson's 0.50 left out) and 20 extensions (dt, substeps) over the lesson's 1.5 s: 40
@@ -72,11 +73,12 @@ def _finished(engine) -> tuple[int, int, int, datetime | None, datetime | None]:
     return rows.get("graded", 0), rows.get("failed", 0), drawing, last, completed
 
 
-WARM_LIMIT_S = 300
+WARM_LIMIT_S = WARM_UP_LIMIT_S  # tools.bench.processes: a warm-up of two slots took 305 s on a loaded host
 
 
 def wait_until_warm(stack, log: Callable[[str], None] = print) -> float | None:
-    """Wait until the worker's case process has warmed up (settings.warm_up_backend): its line in the worker's log.
+    """Wait until the worker's case slots have warmed up (settings.warm_up_backend) and it consumes its case queues:
+    its line in the worker's log (worker.warm_gate).
     A deadline finds workers that have been up for a while; the class is timed from there. Returns the seconds
     waited (None: warm-up off)."""
     if settings.warm_up_backend == "off":  # the stack's worker inherits this environment: nothing to wait for
@@ -87,7 +89,7 @@ def wait_until_warm(stack, log: Callable[[str], None] = print) -> float | None:
     while time.monotonic() - started < WARM_LIMIT_S:
         if stack.worker.poll() is not None:
             raise BenchFailure(f"the worker exited ({stack.worker.returncode}) before its case process warmed up")
-        done = [line for line in worker_log.read_text(errors="replace").splitlines() if WARM_UP_DONE in line]
+        done = [line for line in worker_log.read_text(errors="replace").splitlines() if OPENED in line]
         if done:
             waited = time.monotonic() - started
             log(f"  {done[0].strip()}; {waited:.1f} s after the stack was ready")

@@ -18,7 +18,7 @@ from tools.bench import run
 from tools.bench.cases import BenchFailure
 from tools.bench.stack import ServiceUnavailable
 
-PARTS = ("cases", "submission", "figures", "class", "memory", "api", "reads", "bounded")
+PARTS = ("cases", "submission", "figures", "class", "memory", "api", "reads", "bounded", "slots")
 # --quick: the same measurements, smaller, in a few minutes.
 FULL = {"cases": "N1,N2,N3,N4,N5", "repeats": 3, "class_size": 200, "memory_cases": 500, "api_requests": 20}
 QUICK = {"cases": "N1,N3,N5", "repeats": 2, "class_size": 20, "memory_cases": 50, "api_requests": 10}

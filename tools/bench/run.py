@@ -15,6 +15,7 @@ from tools.bench.figures import bench_figures
 from tools.bench.load import bench_api
 from tools.bench.memory import bench_memory
 from tools.bench.reads import format_reads, run_reads
+from tools.bench.slots import format_slots, run_slots
 from tools.bench.stack import service_stack
 from tools.bench.submission import bench_submission, reference_sheet, time_submission
 
@@ -102,6 +103,10 @@ def run_bench(o: BenchOptions, *, save: Callable[[str, object], None], log: Call
         figures = bench_bounded(o.out_dir / "bounded", max(o.repeats, 5), log=log)
         save("bounded", figures)
         out += [*format_bounded(figures), ""]
+    if "slots" in o.parts:
+        figures = run_slots(o.out_dir / "slots", o.repeats, log=log)
+        save("slots", figures)
+        out += [*format_slots(figures, tables.verdict), ""]
     if out and out[-1] == "":
         out.pop()
     return out + ["machine: shared (other jobs may run on the same cores); compare figures within this run only"]
