@@ -46,15 +46,15 @@ class Settings(BaseSettings):
     # substeps, bodies) instead of building anew; only friction and per-case loop settings change. On because
     # tests/worker/test_scene_reuse.py proves the arrays equal, sample for sample, to a fresh scene's.
     scene_reuse: bool = True
-    # A worker process starts its warm case process when it starts, and that process builds the lesson's two scene
-    # structures (N1, friction-baseline) on this backend before it reads a case: the first case after a deploy or a
-    # restart no longer pays ~15 s of import, init and kernel loading. "off": started on the first case instead. A
-    # ROCm worker sets rocm (docker-compose.yml); a warm-up that fails is logged, and the first case then fails
-    # visibly as it would have.
+    # A worker process starts its warm case process when it starts, and that process builds the lesson's scene
+    # structures (N1-N5, friction-baseline: worker.warm_process.WARM_UP_CASES) on this backend before it reads a
+    # case: the first case after a deploy or a restart no longer pays ~15 s of import, init and kernel loading.
+    # "off": started on the first case instead. A ROCm worker sets rocm (docker-compose.yml); a warm-up that fails is
+    # logged, and the first case then fails visibly as it would have.
     warm_up_backend: Literal["cpu", "rocm", "cuda", "off"] = "cpu"
-    # Case slots per worker (Celery prefork children, each with its own warm case process), so one submission's runs
+    # Case slots per worker (Celery prefork processes, each with its own warm case process): a submission's runs
     # execute side by side. 0: one per core this process may run on, no more than the host's memory holds at
-    # case_memory_limit_mb each (worker.celery_app.worker_concurrency). One case steps on one thread (docs/benchmark.md).
+    # case_memory_limit_mb each (worker.celery_app.worker_concurrency). A case steps on one thread (docs/benchmark.md).
     worker_concurrency: int = Field(0, ge=0, le=256)
     # The API runs sync handlers and dependencies on this many threads (anyio's default is 40) and admits this many
     # requests at once; the rest wait unserved, holding no thread and no connection. Each engine's pool keeps as many
