@@ -1,0 +1,343 @@
+"""The images build and the real docker-compose.yml grades sheets, with podman (issue 36, item 3).
+
+docker/ci/build-images.sh builds the API and CPU worker images from docker/*.Dockerfile (on a Debian base made by
+debootstrap, the torch wheel from pip's find-links) and the Debian-made stand-ins for postgres, redis and nginx; then
+`podman-compose -f docker-compose.yml -f docker/compose.ci.yml` brings up the stack under a project name of its own,
+the proxy on a free loopback port with a self-signed certificate made here (a third compose file of the run's own).
+Through the TLS proxy only: the reference sheet is graded 30 / 30 and its report page and series load; two CPU
+workers grade a class of 10 sheets between them; a worker container killed mid-case (its main process SIGKILLed) is
+restarted by its restart policy, its run measured again and the sheet graded once; PostgreSQL restarted loses nothing
+and the API answers again by itself. The API and worker containers share no volume and the API image holds no torch.
+Nothing of the project is left afterwards (`down -v`: containers, network, volumes); the built images stay as the
+layer cache of the next run.
+
+Runs under CI=true (a missing podman, podman-compose, debootstrap or openssl then fails it) or CONTAINER_TEST=1;
+skipped otherwise. It is one test so that pytest-xdist cannot hand its parts to workers that would each build a
+stack of their own.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import secrets
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+
+import httpx
+import pytest
+
+from tests.factories import ROOT, reference_sheet
+from tests.services import free_port
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+CONTAINERS_CONF = ROOT / "docker" / "ci" / "containers.conf"
+COMPOSE_FILES = ("docker-compose.yml", "docker/compose.ci.yml")
+API_IMAGE, WORKER_IMAGE = "localhost/l03-grader-api:ci", "localhost/l03-grader-worker-cpu:ci"
+BUILD_LIMIT_S = 3600  # a fresh machine: debootstrap, apt, pip and the worker's kernel warm-up
+WAIT_LIMIT_S = 900  # a state to be reached; no assertion about speed rides on it
+COURSE = "l03-ci"
+
+
+def _requested() -> bool:
+    return os.environ.get("CI", "").lower() == "true" or os.environ.get("CONTAINER_TEST") == "1"
+
+
+def _podman_compose() -> list[str] | None:
+    beside = Path(sys.executable).parent / "podman-compose"  # the test extra installs it into the venv
+    found = str(beside) if beside.exists() else shutil.which("podman-compose")
+    return [found] if found else None
+
+
+def _require_tools() -> None:
+    if not _requested():
+        pytest.skip("builds the images and runs the compose stack with podman (minutes): runs under CI=true or "
+                    "CONTAINER_TEST=1")
+    missing = [tool for tool in ("podman", "debootstrap", "openssl") if not shutil.which(tool)]
+    missing += [] if _podman_compose() else ["podman-compose"]
+    if missing:
+        pytest.fail(f"the container test needs {', '.join(missing)} (the Makefile's set-up installs them)")
+
+
+def _run(args: list[str], *, env: dict | None = None, timeout: float = 600, check: bool = True,
+         cwd: Path = ROOT) -> subprocess.CompletedProcess:
+    result = subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
+    if check and result.returncode != 0:
+        raise AssertionError(f"{' '.join(args)} exited {result.returncode}:\n{result.stdout[-4000:]}\n"
+                             f"{result.stderr[-4000:]}")
+    return result
+
+
+def _wait(predicate, what: str, limit_s: float = WAIT_LIMIT_S, poll_s: float = 1.0):
+    deadline = time.monotonic() + limit_s
+    while not (value := predicate()):
+        if time.monotonic() > deadline:
+            raise AssertionError(f"gave up waiting for {what}")
+        time.sleep(poll_s)
+    return value
+
+
+@dataclass
+class Stack:
+    """The compose project: its name, environment, proxy URL and certificate, and the tokens made in it."""
+
+    project: str
+    env: dict
+    url: str
+    ca: Path
+    proxy_file: Path  # the third compose file: the proxy's port and certificate of this run
+    tokens: dict[str, str] = field(default_factory=dict)
+
+    def compose(self, *args: str, timeout: float = 900, check: bool = True) -> subprocess.CompletedProcess:
+        files = [a for f in (*COMPOSE_FILES, str(self.proxy_file)) for a in ("-f", f)]
+        return _run([*_podman_compose(), "--in-pod", "false", "-p", self.project, *files, *args], env=self.env,
+                    timeout=timeout, check=check)
+
+    def podman(self, *args: str, timeout: float = 300, check: bool = True) -> subprocess.CompletedProcess:
+        return _run(["podman", *args], env=self.env, timeout=timeout, check=check)
+
+    def containers(self, service: str | None = None, *, every: bool = False) -> list[str]:
+        filters = ["--filter", f"label=io.podman.compose.project={self.project}"]
+        if service:
+            filters += ["--filter", f"label=com.docker.compose.service={service}"]
+        out = self.podman("ps", *(["-a"] if every else []), *filters, "--format", "{{.Names}}").stdout
+        return sorted(out.split())
+
+    def container(self, service: str) -> str:
+        (name,) = self.containers(service)
+        return name
+
+    def warm(self, container: str) -> bool:
+        """The worker's warm case process is up (its log says so; worker.warm_process): it now takes cases."""
+        logs = self.podman("logs", container, check=False)
+        return "case slots warm after" in logs.stdout + logs.stderr
+
+    def healthy(self, container: str) -> bool:
+        """Runs the container's own health check now (podman 4.3 without systemd runs none by itself)."""
+        return self.podman("healthcheck", "run", container, check=False, timeout=60).returncode == 0
+
+    def inspect(self, container: str) -> dict:
+        return json.loads(self.podman("inspect", container).stdout)[0]
+
+    def sql(self, query: str) -> list[list[str]]:
+        out = self.podman("exec", self.container("postgres"), "psql", "-U", "grader", "-d", "grader", "-tA",
+                          "-F", "\t", "-c", query).stdout
+        return [line.split("\t") for line in out.splitlines() if line]
+
+    def token(self, name: str, role: str) -> str:
+        out = self.podman("exec", self.container("api"), "grader", "admin", "token", COURSE, name, "--role",
+                          role).stdout
+        self.tokens[name] = out.split()[-1]
+        return self.tokens[name]
+
+    def http(self, token: str | None = None) -> httpx.Client:
+        headers = {"Authorization": f"Bearer {token}"} if token else {}
+        return httpx.Client(base_url=self.url, verify=str(self.ca), headers=headers, timeout=30)
+
+    def api_answers(self) -> bool:
+        try:
+            with self.http() as http:
+                return http.get("/v1/health").status_code == 200
+        except httpx.HTTPError:
+            return False
+
+
+def _certificate(folder: Path) -> Path:
+    _run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "2", "-subj", "/CN=localhost",
+          "-addext", "subjectAltName=DNS:localhost,IP:127.0.0.1", "-keyout", str(folder / "privkey.pem"),
+          "-out", str(folder / "fullchain.pem")])
+    (folder / "privkey.pem").chmod(0o644)  # read by nginx in its container
+    return folder / "fullchain.pem"
+
+
+def _image_size_mb(stack: Stack, image: str) -> float:
+    return int(stack.podman("image", "inspect", image, "--format", "{{.Size}}").stdout) / 1e6
+
+
+def _started_at(stack: Stack, container: str) -> datetime:
+    return datetime.fromisoformat(re.sub(r"(\.\d{6})\d*", r"\1", stack.inspect(container)["State"]["StartedAt"])
+                                  .replace(" UTC", "").replace(" +0000", "+00:00"))
+
+
+def _submit(stack: Stack, who: str, sheet: dict, **options) -> int:
+    with stack.http(stack.tokens[who]) as http:
+        response = http.post("/v1/submissions", json={"sheet": sheet, **options})
+        assert response.status_code in (200, 201, 202), response.text
+        return response.json()["id"]
+
+
+def _submission(stack: Stack, who: str, submission_id: int) -> dict:
+    with stack.http(stack.tokens[who]) as http:
+        return http.get(f"/v1/submissions/{submission_id}").json()
+
+
+def _graded(stack: Stack, who: str, submission_id: int) -> dict:
+    def done():
+        try:
+            final = _submission(stack, who, submission_id)
+        except httpx.HTTPError:
+            return None  # the API or the proxy restarting
+        return final if final.get("status") in ("graded", "failed") else None
+    final = _wait(done, f"submission {submission_id} graded")
+    assert final["status"] == "graded", final
+    return final
+
+
+def _sheet(table_friction: float) -> dict:
+    """The reference sheet with a table friction of its own: one case to measure, the other eight shared."""
+    sheet = reference_sheet()
+    sheet["configs"]["table_exercise"]["table"]["friction"] = table_friction
+    sheet["configs"]["table_exercise"]["name"] = f"table-{table_friction:.2f}"
+    return sheet
+
+
+@pytest.fixture(scope="module")
+def stack(tmp_path_factory):
+    _require_tools()
+    env = {**os.environ, "CONTAINERS_CONF": str(CONTAINERS_CONF)}
+    started = time.monotonic()
+    built = _run([str(ROOT / "docker" / "ci" / "build-images.sh")], env=env, timeout=BUILD_LIMIT_S)
+    print(f"\nimages built in {time.monotonic() - started:.0f} s:\n{built.stdout}")
+    tls = tmp_path_factory.mktemp("tls")
+    ca = _certificate(tls)
+    port = free_port()
+    # podman-compose 1.6 interpolates no variable inside `!override`: the port is written into the file itself
+    proxy_file = tmp_path_factory.mktemp("compose") / "proxy.yml"
+    proxy_file.write_text(f"services:\n  proxy:\n    ports: !override [\"127.0.0.1:{port}:443\"]\n"
+                          f"    volumes: [\"{tls}:/etc/nginx/tls:ro\"]\n")
+    env |= {"POSTGRES_PASSWORD": secrets.token_hex(16)}
+    deployment = Stack(f"l03ci{secrets.token_hex(4)}", env, f"https://127.0.0.1:{port}", ca, proxy_file)
+    try:
+        up = time.monotonic()
+        deployment.compose("up", "-d")
+        print(f"podman-compose up returned in {time.monotonic() - up:.0f} s")
+        yield deployment
+    finally:
+        for service in ("api", "worker-cpu", "proxy", "postgres"):
+            logs = deployment.compose("logs", "--tail", "40", service, check=False)
+            print(f"--- {service} (last lines)\n{logs.stdout[-3000:]}{logs.stderr[-1000:]}")
+        deployment.compose("down", "-v", "-t", "5", timeout=600, check=False)
+        if scaled := deployment.containers(every=True):
+            # podman-compose 1.6's `down` knows only the containers its files name, not those of `--scale`: it
+            # leaves them, and the network and volumes they hold. They are the project's own: removed here.
+            print(f"podman-compose down left {scaled}: removing them")
+            deployment.podman("rm", "-f", "--depend", "-t", "5", *scaled, check=False)
+            deployment.compose("down", "-v", "-t", "5", timeout=600, check=False)
+        left = deployment.containers(every=True)
+        networks = deployment.podman("network", "ls", "-q", "--filter", f"label=io.podman.compose.project="
+                                     f"{deployment.project}").stdout.split()
+        volumes = [v for v in deployment.podman("volume", "ls", "-q").stdout.split()
+                   if v.startswith(deployment.project)]
+        assert not (left or networks or volumes), f"left behind: {left} {networks} {volumes}"
+
+
+def test_the_compose_stack_grades_through_tls_scales_recovers_and_keeps_its_data(stack):
+    # Started and healthy: the API through its own health check (its start-up includes the migrations), the proxy.
+    api = stack.container("api")
+    _wait(lambda: stack.healthy(api), "the API's health check", poll_s=0.5)
+    healthy_at = datetime.now(_started_at(stack, api).tzinfo)
+    print(f"API container start to healthy: {(healthy_at - _started_at(stack, api)).total_seconds():.1f} s")
+    _wait(stack.api_answers, "the API through the TLS proxy")
+    with stack.http() as http:  # the proxy's TLS with the certificate made here; plain HTTP only redirects
+        assert http.get("/v1/health").json()
+    worker = stack.container("worker-cpu")
+    _wait(lambda: stack.healthy(worker), "the worker's health check (celery inspect ping)")
+    sizes = {image: _image_size_mb(stack, image) for image in (API_IMAGE, WORKER_IMAGE)}
+    print("image sizes: " + ", ".join(f"{image} {mb:.0f} MB" for image, mb in sizes.items()))
+
+    # The API image holds no engine, and the API's containers and the workers' share no volume.
+    no_torch = stack.podman("run", "--rm", "--network", "none", API_IMAGE, "python", "-c",
+                            "import importlib.util as u; print([m for m in ('torch', 'genesis') if u.find_spec(m)])")
+    assert no_torch.stdout.strip() == "[]", no_torch.stdout
+    mounts = {c: {m.get("Name") or m.get("Source") for m in stack.inspect(c)["Mounts"]}
+              for c in stack.containers()}
+    for side in (*stack.containers("api"), *stack.containers("reconciler")):
+        for worker_container in stack.containers("worker-cpu"):
+            assert not mounts[side] & mounts[worker_container], (side, worker_container, mounts)
+
+    stack.token("alice", "student")
+    stack.token("prof", "instructor")
+
+    # The reference sheet, graded through the proxy; its report page and every series it draws, too.
+    started = time.monotonic()
+    reference = _submit(stack, "alice", reference_sheet())
+    _graded(stack, "alice", reference)
+    with stack.http(stack.tokens["alice"]) as http:
+        grade = http.get(f"/v1/submissions/{reference}/grade").json()
+    line = f"GRADE {grade['total']:g} / {grade['max_total']:g}"
+    print(f"reference sheet: {line}, in {time.monotonic() - started:.0f} s")
+    assert line == "GRADE 30 / 30", grade
+    with stack.http() as page:
+        # a browser's sign-in form: Origin is the proxy's own host and port, as the page was loaded from it
+        signed = page.post("/sign-in", data={"token": stack.tokens["alice"], "next": f"/submissions/{reference}"},
+                           headers={"Origin": stack.url}, follow_redirects=True)
+        assert signed.status_code == 200 and f"/submissions/{reference}" in str(signed.url), signed.text[:500]
+        series = re.findall(r'data-src="([^"]+)"', signed.text)
+        assert series, "the report page draws no chart"
+        failed = {url: code for url in series if (code := page.get(url.replace("&amp;", "&")).status_code) != 200}
+        assert not failed, failed
+
+    # Two CPU workers; a class of 10 sheets, each with a table friction of its own, graded between them.
+    stack.compose("up", "-d", "--no-recreate", "--scale", "worker-cpu=2")
+    workers = stack.containers("worker-cpu")
+    assert len(workers) == 2, workers
+    for name in workers:  # the new worker warm before the class is sent, or the first may take every run
+        _wait(lambda name=name: stack.healthy(name) and stack.warm(name), f"{name} healthy and warm")
+    hostnames = {stack.inspect(name)["Config"]["Hostname"]: name for name in workers}
+    students = [f"s{i:02d}" for i in range(10)]
+    for student in students:
+        stack.token(student, "student")
+    started = time.monotonic()
+    class_ids = [_submit(stack, s, _sheet(0.31 + i / 100)) for i, s in enumerate(students)]
+    for student, submission_id in zip(students, class_ids):
+        _graded(stack, student, submission_id)
+    took = stack.sql("SELECT DISTINCT worker FROM case_runs WHERE submission_id IN (%s) AND worker IS NOT NULL"
+                     % ",".join(map(str, class_ids)))
+    by = {w[0] for w in took}
+    print(f"class of 10 graded in {time.monotonic() - started:.0f} s; runs taken by {sorted(by)}")
+    memory = stack.podman("stats", "--no-stream", "--format", "{{.Name}} {{.MemUsage}}", *stack.containers(),
+                          check=False)
+    print(f"memory in use:\n{memory.stdout}")
+    assert {h for h in hostnames if any(h in w for w in by)} == set(hostnames), (by, hostnames)
+
+    # A worker container killed mid-case: its run is measured again and the sheet graded once.
+    forced = _submit(stack, "prof", reference_sheet(), force_rerun=True)
+
+    def running():
+        rows = stack.sql(f"SELECT id, worker, tries FROM case_runs WHERE submission_id = {forced} "
+                         "AND status = 'running' AND worker IS NOT NULL")
+        return next(((run, worker, int(tries)) for run, worker, tries in rows
+                     if any(h in worker for h in hostnames)), None)
+    victim, holder, tries = _wait(running, "a run of the forced sheet in the middle of its case", poll_s=0.3)
+    container = next(name for host, name in hostnames.items() if host in holder)
+    # SIGKILL of the container's main process from the host, as the kernel's OOM killer would: the container dies
+    # and its restart policy (unless-stopped) starts it again, same hostname, whose worker re-sends the run its dead
+    # process held. (`podman kill` would count as an operator's stop: no restart, and the run would wait for its lease.)
+    pid, restarts = (int(v) for v in stack.podman("inspect", "--format", "{{.State.Pid}} {{.RestartCount}}",
+                                                   container).stdout.split())
+    os.kill(pid, signal.SIGKILL)
+    print(f"killed {container} ({holder}) while it ran case run {victim} (try {tries})")
+    _wait(lambda: int(stack.podman("inspect", "--format", "{{.RestartCount}}", container).stdout) > restarts,
+          f"{container} restarted by its restart policy")
+    _graded(stack, "prof", forced)
+    (after,) = stack.sql(f"SELECT status, tries, worker FROM case_runs WHERE id = {victim}")
+    print(f"case run {victim} after the kill: {after}")
+    assert after[0] == "done" and int(after[1]) > tries, after
+    assert stack.sql(f"SELECT count(*) FROM grades WHERE submission_id = {forced}") == [["1"]]
+
+    # PostgreSQL restarted: nothing lost, the API answers again by itself and grades a new sheet.
+    before = stack.sql("SELECT id, status FROM submissions ORDER BY id")
+    stack.podman("restart", "-t", "10", stack.container("postgres"))
+    _wait(stack.api_answers, "the API answering through the proxy after PostgreSQL's restart")
+    assert stack.sql("SELECT id, status FROM submissions ORDER BY id") == before
+    late = _submit(stack, "alice", _sheet(0.45))
+    _graded(stack, "alice", late)
+    print(f"after PostgreSQL's restart: {len(before)} submissions kept, submission {late} graded")
