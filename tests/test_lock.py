@@ -29,7 +29,7 @@ def requirements(pyproject: dict, extras: tuple[str, ...]) -> list[Requirement]:
 
 
 def parse_lock(text: str) -> dict[str, dict]:
-    """name -> {version, hashes, via} from pip-compile's output (`name==version \\` then `--hash=` and `# via` lines)."""
+    """name -> {version, hashes, via} from pip-compile's output: `name==version \\`, its `--hash=` and `# via` lines."""
     pins: dict[str, dict] = {}
     current: dict | None = None
     via_block = False
