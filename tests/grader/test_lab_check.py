@@ -4,8 +4,10 @@ the output-location condition checked on the filesystem against ARTIFACTS_DIR ra
 from __future__ import annotations
 
 import dataclasses
+import os
 import shutil
 import subprocess
+from pathlib import Path
 
 import pytest
 
@@ -14,6 +16,12 @@ from rubric.check import verdict_line
 from grader.core.lab_check import submission_check
 
 pytestmark = pytest.mark.slow
+
+
+def holding(measured, figures) -> Path:
+    """The nearest folder that holds both the measured case folders and the figures (under pytest-xdist the lesson is
+    measured into a folder every test process shares, beside this process's own temporary folder)."""
+    return Path(os.path.commonpath([r.out_dir for r in measured.values()] + [str(f) for f in figures]))
 
 
 @pytest.fixture(scope="module")
@@ -29,7 +37,7 @@ def _condition(outcome, cid):
 
 def test_a_submission_with_every_check_case_passes_and_says_what_each_condition_means_here(
         measured, figures, tmp_path_factory):
-    artifacts = tmp_path_factory.getbasetemp()  # holds both the measured case folders and the figures
+    artifacts = holding(measured, figures)
     outcome = submission_check(measured, figures=figures, artifacts_dir=artifacts, rubric=load_rubric("L03"),
                                reused={"N1": 7})
     assert outcome.passed, "\n".join(f"{c.id}: {c.evidence}" for c in outcome.conditions if not c.passed)
@@ -75,7 +83,7 @@ def test_an_artifacts_dir_inside_a_git_work_tree_must_be_ignored_by_it(measured,
 
 def test_a_missing_check_case_is_reported_not_run(measured, figures, tmp_path_factory):
     partial = {name: r for name, r in measured.items() if name != "friction-table-0.30"}
-    outcome = submission_check(partial, figures=figures, artifacts_dir=tmp_path_factory.getbasetemp(),
+    outcome = submission_check(partial, figures=figures, artifacts_dir=holding(measured, figures),
                                rubric=load_rubric("L03"))
     assert not outcome.passed
     assert [c.id for c in outcome.conditions if not c.passed] == ["table_friction_change"]
