@@ -11,6 +11,10 @@ import pytest
 # Settings are read at import; without this, importing the Celery app would create the embedded broker's folders
 # under the repository's var/ during tests. Tests that need their own data dir still set DATA_DIR themselves.
 os.environ.setdefault("DATA_DIR", tempfile.mkdtemp(prefix="grader-tests-"))
+# Every worker a test starts has one case slot (one warm Genesis process) unless the test asks for more
+# (tests/integration/test_parallel_cases.py does): the suite already runs a test process per core, and a slot per core
+# in each of the dozens of workers it starts would double the Genesis warm-ups competing for the same two cores.
+os.environ.setdefault("WORKER_CONCURRENCY", "1")
 
 from rubric import BASELINE_CASES, CaseResult
 from worker import run_cases
