@@ -6,10 +6,12 @@ Revises: 0013
 Create Date: 2026-11-26 10:00:00
 """
 
-from datetime import UTC, datetime, timedelta
+from datetime import timedelta
 
 import sqlalchemy as sa
 from alembic import op
+
+from grader.core import clock  # the service's one "now", shifted with it
 
 
 revision = '0014'
@@ -23,7 +25,7 @@ EXISTING_TOKENS_LAST_DAYS = 180  # settings.token_lifetime_days' default, fixed 
 def upgrade() -> None:
     with op.batch_alter_table('api_tokens') as batch_op:
         batch_op.add_column(sa.Column('expires_at', sa.DateTime(), nullable=True))
-    until = datetime.now(UTC).replace(tzinfo=None) + timedelta(days=EXISTING_TOKENS_LAST_DAYS)
+    until = clock.now() + timedelta(days=EXISTING_TOKENS_LAST_DAYS)
     op.execute(sa.text("UPDATE api_tokens SET expires_at = :until WHERE expires_at IS NULL").bindparams(until=until))
     op.create_table('web_sessions',
     sa.Column('id', sa.Integer(), nullable=False),

@@ -9,11 +9,12 @@ Create Date: 2026-11-26 14:00:00
 
 import json
 import logging
-from datetime import UTC, datetime
 from pathlib import Path
 
 import sqlalchemy as sa
 from alembic import op
+
+from grader.core import clock  # the service's one "now", shifted with it
 
 
 revision = '0017'
@@ -59,7 +60,7 @@ def _move_evidence_in(bind) -> None:
         "SELECT id, submission_id, spec, provenance, metrics, artifact_dir FROM case_runs "
         "WHERE artifact_dir IS NOT NULL AND reused_from_id IS NULL AND status IN ('done', 'failed') ORDER BY id"
     )).all()
-    now = datetime.now(UTC).replace(tzinfo=None)
+    now = clock.now()
     moved = missing = 0
     for run_id, submission_id, spec, provenance, metrics, artifact_dir in runs:
         folder = Path(artifact_dir)
