@@ -22,8 +22,8 @@ from grader.core.db import migrate, new_session
 from grader.core.states import CaseRunState, SubmissionState
 from grader.dispatch import EMBEDDED_QUEUES, resend
 from grader.reconcile import RECONCILE_EVERY_S, find_and_requeue
-from grader.services import accounts, sign_in_links
-from grader.settings import settings
+from grader.services.identity import accounts, sign_in_links
+from grader.core.settings import settings
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE_SHEET = ROOT / "examples" / "l03" / "reference.yaml"

@@ -125,10 +125,10 @@ def ngettext(locale: str, singular: str, plural: str, n: int) -> str:
 # msgid is translated and the matched values put back, themselves translated where they are messages too. A
 # message no pattern matches shows in English (and is recorded in MISSING).
 PATTERNS: list[tuple[re.Pattern, str]] = [
-    # grader.services.assignments.late_text
+    # grader.services.setup.assignments.late_text
     (re.compile(r"^(?P<span>[0-9dhmins ]+) late \((?P<days>[0-9]+) days? charged\)$"),
      N_("%(span)s late (%(days)s days charged)")),
-    # grader.services.assignments.admit
+    # grader.services.setup.assignments.admit
     (re.compile(r"^assignment (?P<id>[0-9]+) opens at (?P<at>\S+(?: \(\S+\))?); it is (?P<now>\S+(?: \(\S+\))?)$"),
      N_("assignment %(id)s opens at %(at)s; it is %(now)s")),
     (re.compile(r"^assignment (?P<id>[0-9]+) closed at (?P<at>\S+(?: \(\S+\))?) \(its hard close\); "
@@ -142,7 +142,7 @@ PATTERNS: list[tuple[re.Pattern, str]] = [
     (re.compile(r"^assignment (?P<id>[0-9]+) allows (?P<n>[0-9]+) submissions per hour; (?P<k>[0-9]+) in the last "
                 r"hour, the next is allowed at (?P<at>\S+(?: \(\S+\))?)$"),
      N_("assignment %(id)s allows %(n)s submissions per hour; %(k)s in the last hour, the next is allowed at %(at)s")),
-    # grader.services.sign_in_links.refusal
+    # grader.services.identity.sign_in_links.refusal
     (re.compile(r"^This sign-in link was already used, at (?P<at>.+); a link works once\. Ask your instructor for a "
                 r"new one if you are not signed in\.$"),
      N_("This sign-in link was already used, at %(at)s; a link works once. Ask your instructor for a new one if you "
@@ -153,7 +153,7 @@ PATTERNS: list[tuple[re.Pattern, str]] = [
         "newest link you were sent, or ask your instructor.")),
     (re.compile(r"^This sign-in link expired at (?P<at>.+)\. Ask your instructor for a new one\.$"),
      N_("This sign-in link expired at %(at)s. Ask your instructor for a new one.")),
-    # grader.services.visibility (why scores are not shown yet)
+    # grader.services.submissions.visibility (why scores are not shown yet)
     (re.compile(r"^scores and feedback are (?P<why>.+)$"), N_("scores and feedback are %(why)s")),
     (re.compile(r"^some items' scores and feedback are (?P<why>.+)$"),
      N_("some items' scores and feedback are %(why)s")),
@@ -172,7 +172,7 @@ PATTERNS: list[tuple[re.Pattern, str]] = [
      N_("%(role)s vs %(base)s: too many inputs changed at once; only %(may)s may change, but also: %(also)s%(note)s")),
     (re.compile(r"^; visual only, not a physical input: (?P<fields>.+)$"),
      N_("; visual only, not a physical input: %(fields)s")),
-    # grader.pages.sheet_form notices
+    # grader.pages.submissions.sheet_form notices
     (re.compile(r"^The draft now holds your submission (?P<id>[0-9]+)'s sheet\.$"),
      N_("The draft now holds your submission %(id)s's sheet.")),
     (re.compile(r"^Imported (?P<file>.+) into the draft; check it before submitting\.$"),
@@ -187,7 +187,7 @@ WORDS = [
     # grader.pages.views.VERDICT_LABEL
     N_("credit"), N_("no credit"), N_("inconclusive (not counted)"), N_("config fault"), N_("not measured"),
     N_("pending"),
-    # grader.pages.routes.PART_TITLES
+    # grader.pages.submissions.report.PART_TITLES
     N_("Part A: contact and time step"), N_("Part B: friction and stopping distance"), N_("Concept checkpoints"),
     N_("Hands-on exercise"), N_("Extension"),
 ]

@@ -9,17 +9,17 @@ from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
 
-from grader.api import errors, logs
-from grader.api.admission import BodyDeadline, ClientLimit, InFlightLimit, lifespan
-from grader.api.headers import SecurityHeaders, docs_policy
+from grader.web import errors, logs
+from grader.web.admission import BodyDeadline, ClientLimit, InFlightLimit, lifespan
+from grader.web.headers import SecurityHeaders, docs_policy
 from grader.api.main import api_router
 from grader.api.routes.health import metrics_router
 from grader.pages import errors as page_errors
-from grader.pages import lti as lti_pages
+from grader.pages.lti import launch as lti_pages
 from grader.pages import router as pages_router
 from grader.pages.templates import TEMPLATES
 from grader.services.errors import DomainError
-from grader.settings import settings
+from grader.core.settings import settings
 
 app = FastAPI(
     title="L03 simulation autograder",
@@ -53,7 +53,7 @@ def swagger_ui() -> HTMLResponse:
 logs.install()  # no sign-in link's secret in the access log, whichever server runs the app
 
 # Outermost last: headers on every answer; then the per-client cap; then the whole body within its deadline; only
-# then an admission slot; then grader.api.errors' BodyGuard checks the body.
+# then an admission slot; then grader.web.errors' BodyGuard checks the body.
 errors.install(app, max_bytes=settings.max_body_bytes, max_depth=settings.max_json_depth, page_error=page_errors.page_error)
 page_errors.install(app)
 app.add_middleware(InFlightLimit, limit=settings.api_threads)

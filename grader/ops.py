@@ -14,7 +14,7 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from grader import dispatch
-from grader.models import CaseRun, Grade, LtiOutbox, Submission, utcnow
+from grader.core.models import CaseRun, Grade, LtiOutbox, Submission, utcnow
 from grader.core import lifecycle, warmth
 from grader.core.states import CaseRunState
 
@@ -29,7 +29,7 @@ class ServiceStatus(BaseModel):
     failures_by_reason: dict[str, int]
     stuck_case_runs: int
     grades_drawing: int = 0  # current grades stored whose figures and lab check are not yet (worker.grading)
-    lti_failing: int = 0  # assignments whose scores the LMS gradebook refused last (grader.services.lti_outbox)
+    lti_failing: int = 0  # assignments whose scores the LMS gradebook refused last (grader.services.lti.outbox)
     durations_s: list[float]  # wall time of every case measured (not reused), for the histogram
     broker_error: str | None = None
     # Each live worker's case slots, warm or warming (grader.core.warmth); None: the broker keeps no such record

@@ -10,7 +10,7 @@
 - grading longer than the lease (grade task lost): the grade task is re-sent (grading is exactly-once anyway);
 - graded, but its lab check still missing a lease after the grade task was sent (the worker died while
   drawing them): the grade task is re-sent, and completes the stored grade without grading again;
-- counted scores marked for the LMS gradebooks (grader.services.lti_outbox) are sent, once the marking commits or the
+- counted scores marked for the LMS gradebooks (grader.services.lti.outbox) are sent, once the marking commits or the
   backoff after a failed send is over, and withheld ones once their due date passes.
 A new delivery number makes every older message for that case run stale, so a late redelivery never runs twice.
 A rocm/cuda case run with no worker of its kind is simply re-sent to the same queue: never to another backend.
@@ -25,9 +25,9 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.core import lifecycle
-from grader.models import CaseRun, Event, Grade, Submission, utcnow
-from grader.services import lti_outbox
-from grader.settings import settings
+from grader.core.models import CaseRun, Event, Grade, Submission, utcnow
+from grader.services.lti import outbox as lti_outbox
+from grader.core.settings import settings
 from grader.core.states import CaseRunState, SubmissionState
 
 # A run younger than this is never judged by liveness: its message may be between the broker and a worker.

@@ -1,4 +1,4 @@
-"""What the API accepts (…Create) and returns (…Public). Tables live in grader.models."""
+"""What the API accepts (…Create) and returns (…Public). Tables live in grader.core.models."""
 
 from __future__ import annotations
 

@@ -29,7 +29,7 @@ def reference_sheet() -> dict:
 
 def create_people(session, *, course: str, other_course: str) -> dict[str, str]:
     """The course's students, instructor and auditor, plus an instructor of another course; their API tokens by name."""
-    from grader.services import accounts
+    from grader.services.identity import accounts
 
     courses = [accounts.get_or_create_course(session=session, name=name) for name in (course, other_course)]
     tokens = {}
@@ -123,7 +123,7 @@ def mark_measured(run, result, *, artifact_dir=None) -> None:
     from sqlalchemy.orm import object_session
 
     from grader.core.lifecycle import store_evidence
-    from grader.models import utcnow
+    from grader.core.models import utcnow
 
     run.status, run.result_status, run.artifact_dir = "done", "ok", str(artifact_dir or result.out_dir)
     run.provenance = result.provenance.model_dump(mode="json")
@@ -138,12 +138,12 @@ def store_lesson_runs(session, measured: dict, *, by: str) -> dict[str, int]:
     would have left them; commits. Their case run ids by name."""
     from sqlalchemy import select
 
-    from grader.services import submissions
-    from grader.models import User
+    from grader.services.submissions import submit as submissions
+    from grader.core.models import User
     from rubric import BASELINE_CASES
     from rubric.scoring import LESSON_RUNS
 
-    from grader.models import Measurement
+    from grader.core.models import Measurement
     from grader.core import content_key as reuse
 
     user = session.scalar(select(User).where(User.name == by))
@@ -163,7 +163,7 @@ def store_lesson_runs(session, measured: dict, *, by: str) -> dict[str, int]:
 
 def audit_entry_for(run, **fields):
     """An AuditEntry comparing a case run with itself (cpu 32 against cpu 64, warm), as the audit would store it."""
-    from grader.models import AuditEntry
+    from grader.core.models import AuditEntry
 
     values = dict(course_id=run.submission.course_id, lesson="L03", case=run.name, spec_key=run.spec_key,
                   spec=run.spec, left_case_run_id=run.id, right_case_run_id=run.id, left_variant="cpu/32/warm",

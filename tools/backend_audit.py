@@ -62,8 +62,8 @@ def compare(runs: Path, left: str, right: str, data_dir: Path) -> int:
     from grader.core import content_key, lifecycle
     from grader.core.audit import create_audit_rerun
     from grader.core.db import migrate, new_session
-    from grader.models import Submission
-    from grader.services import accounts
+    from grader.core.models import Submission
+    from grader.services.identity import accounts
     from worker import load_result
     from worker.audit import audit_finished_run
 
@@ -122,7 +122,7 @@ def _load(load_result, folder: Path):
 
 
 def _stored(session, lifecycle, content_key, submission, result):
-    from grader.models import CaseRun  # lazy: this tool's DB imports only after the environment is set
+    from grader.core.models import CaseRun  # lazy: this tool's DB imports only after the environment is set
 
     spec = result.spec.model_dump(mode="json", exclude_computed_fields=True)
     from grader.core.audit import spec_key  # lazy: as above

@@ -22,8 +22,8 @@ from rubric.guards import provenance_violation
 from grader.core.audit import PROVENANCE_MARKERS, spec_key, variant
 from grader.core.lifecycle import stored_result
 from grader.core.rubrics import course_rubric
-from grader.models import AuditEntry, CaseRun
-from grader.settings import settings
+from grader.core.models import AuditEntry, CaseRun
+from grader.core.settings import settings
 from grader.core.states import TERMINAL, CaseRunState
 
 log = logging.getLogger(__name__)

@@ -16,8 +16,8 @@ from sqlalchemy.orm import Session
 from rubric import parse_case
 
 from grader.core import lifecycle
-from grader.models import CaseRun, Measurement
-from grader.settings import settings
+from grader.core.models import CaseRun, Measurement
+from grader.core.settings import settings
 from grader.core import content_key
 
 

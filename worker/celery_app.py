@@ -34,7 +34,7 @@ from kombu import Queue
 from kombu.transport import TRANSPORT_ALIASES
 
 from grader.core.states import Backend, values
-from grader.settings import settings
+from grader.core.settings import settings
 from worker.warm_gate import WarmGate
 
 # filesystem:// is kombu's filesystem transport serving messages by priority (worker.filesystem_broker), in every

@@ -7,7 +7,7 @@
    waits on the cpu queue behind every case run (the lowest priority), so at a deadline the grades come first.
 
 No figure is drawn here: the report's charts are drawn in the reader's browser from the arrays stored in the
-database (grader/services/figure_series.py), so any API host shows them and a report is complete right after its
+database (grader/services/reports/series.py), so any API host shows them and a report is complete right after its
 cases. Drawing the 18 PNGs cost more CPU than the simulation (docs/benchmark.md, `figures`); the PNG figures
 (worker.figures) remain for the command line's offline report (`grader check`).
 
@@ -26,8 +26,8 @@ from grader.core.lab_check import lab_check
 from grader.core.grading import grade_and_store
 from grader.core.lifecycle import stored_result, touch
 from grader.core.rubrics import course_rubric, current_grade
-from grader.models import Event, Grade, Submission, utcnow
-from grader.settings import settings
+from grader.core.models import Event, Grade, Submission, utcnow
+from grader.core.settings import settings
 from grader.core.states import SubmissionState
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from grader.settings import settings
+from grader.core.settings import settings
 from worker.case_process import WarmCaseProcess, run_case
 
 _warm_process = None

@@ -15,7 +15,7 @@ from sqlalchemy.orm import Session
 
 from grader.core import lifecycle
 from grader.core.db import make_engine, new_session
-from grader.settings import settings
+from grader.core.settings import settings
 from worker import grading, slot, warm_gate
 from worker.audit import audit_finished_run
 from worker.case_run import process_case_run

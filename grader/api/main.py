@@ -1,11 +1,15 @@
-"""Collects the routers under /v1."""
+"""Collects the routers under /v1: one package per service context (grader/services/<context>), health apart."""
 
 from fastapi import APIRouter, Depends, Request
 from fastapi.exceptions import RequestValidationError
 
-from grader.api.routes import reviews
-from grader.api.routes import (assignments, audit, case_runs, courses, exports, files, health, lti, rubrics,
-                               submissions, tokens)
+from grader.api.routes import health
+from grader.api.routes.identity import tokens
+from grader.api.routes.lti import registrations
+from grader.api.routes.reports import audit, exports
+from grader.api.routes.rubrics import versions
+from grader.api.routes.setup import assignments, courses
+from grader.api.routes.submissions import case_runs, files, review_requests, submit
 
 
 def single_query_values(request: Request) -> None:
@@ -21,14 +25,14 @@ def single_query_values(request: Request) -> None:
 
 api_router = APIRouter(prefix="/v1", dependencies=[Depends(single_query_values)])
 api_router.include_router(health.router)
-api_router.include_router(submissions.router)
+api_router.include_router(submit.router)
 api_router.include_router(files.router)
 api_router.include_router(courses.router)
 api_router.include_router(assignments.router)
 api_router.include_router(exports.router)
-api_router.include_router(rubrics.router)
+api_router.include_router(versions.router)
 api_router.include_router(audit.router)
 api_router.include_router(case_runs.router)
 api_router.include_router(tokens.router)
-api_router.include_router(lti.router)
-api_router.include_router(reviews.router)
+api_router.include_router(registrations.router)
+api_router.include_router(review_requests.router)

@@ -1,4 +1,4 @@
-"""Table rows -> public schemas. What a caller may see of a grade is decided by grader.services.visibility."""
+"""Table rows -> public schemas. What a caller may see of a grade is decided by grader.services.submissions.visibility."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from collections import Counter
 from sqlalchemy.orm import Session
 
 from grader.core.states import CaseRunState, values
-from grader.models import Grade, Submission, User
+from grader.core.models import Grade, Submission, User
 from grader.schemas import CaseRunPublic, GradeHistoryEntry, GradePublic, Progress, SubmissionPublic
-from grader.services.visibility import GradeView, attempt_standing, grade_view
+from grader.services.submissions.visibility import GradeView, attempt_standing, grade_view
 
 
 def progress(submission: Submission) -> Progress:

@@ -33,7 +33,8 @@ def register(course_name: str, issuer: str, client_id: str, deployment_ids: tupl
     """Register a platform whose launches sign people into COURSE (created if new)."""
     # lazy: SQLAlchemy (~0.5 s) stays off `grader --help`; only the database commands load it
     from grader.core.db import new_session
-    from grader.services import accounts, lti as logic
+    from grader.services.identity import accounts
+    from grader.services.lti import launch as logic
     from grader.services.errors import DomainError
 
     with new_session() as session:
@@ -57,8 +58,8 @@ def list_registrations(course_name: str) -> None:
     from sqlalchemy import select
 
     from grader.core.db import new_session
-    from grader.models import Course
-    from grader.services import lti as logic
+    from grader.core.models import Course
+    from grader.services.lti import launch as logic
 
     with new_session() as session:
         course = session.scalar(select(Course).where(Course.name == course_name))
@@ -74,7 +75,7 @@ def keys(rotate: bool) -> None:
     """Print the tool's public keys (its JWKS, also served at /lti/jwks); with --rotate, rotate first."""
     # lazy: SQLAlchemy (~0.5 s) stays off `grader --help`; only the database commands load it
     from grader.core.db import new_session
-    from grader.services import lti as logic
+    from grader.services.lti import launch as logic
 
     with new_session() as session:
         if rotate:
@@ -92,8 +93,8 @@ def scores(assignment_id: int, url: str) -> None:
     """Send ASSIGNMENT_ID's counted scores to the LMS gradebooks: only changed or failed ones go."""
     # lazy: SQLAlchemy (~0.5 s) stays off `grader --help`; only the database commands load it
     from grader.core.db import new_session
-    from grader.models import Assignment
-    from grader.services import lti as logic
+    from grader.core.models import Assignment
+    from grader.services.lti import launch as logic
 
     with new_session() as session:
         assignment = session.get(Assignment, assignment_id)

@@ -11,7 +11,7 @@ from pathlib import Path
 import click
 
 from grader.core.states import Backend, SubmissionState, values
-from grader.settings import settings
+from grader.core.settings import settings
 
 
 @click.group()
@@ -43,7 +43,7 @@ def token(course: str | None, name: str | None, role: str | None, expires_in: in
     token; or --list NAME's tokens."""
     # lazy: SQLAlchemy (~0.5 s) stays off `grader --help`; only the database commands load it
     from grader.core.db import new_session
-    from grader.services import accounts
+    from grader.services.identity import accounts
     from grader.services.errors import DomainError
 
     if revoke is not None:
@@ -164,7 +164,7 @@ def submit(sheet_file, url: str, token: str, backend: str | None, force_rerun: b
     else:
         click.echo(f"submission {created['id']}: {progress['queued']} case runs queued")
     if created["attempt"]:
-        from grader.services.assignments import late_text  # lazy: SQLAlchemy stays off `grader --help`
+        from grader.services.setup.assignments import late_text  # lazy: SQLAlchemy stays off `grader --help`
 
         click.echo(f"assignment {created['assignment_id']}, attempt {created['attempt']}, "
                    f"{late_text(created['late_seconds'])}")

@@ -8,6 +8,6 @@ audit        the audit log's vocabulary and re-runs      timezones    course tim
 security     token hashing                               clock        the one "now" (frozen by tests, shifted by settings)
 outbound     every URL the server fetches, under one policy (https, public addresses, no redirects, size and time caps)
 
-With grader.settings and grader.models, the only part of grader that worker/ imports; it imports no service, web
+With grader.core.settings and grader.core.models, the only part of grader that worker/ imports; it imports no service, web
 layer or worker module (import-linter contract core-neutral in pyproject.toml).
 """

@@ -12,7 +12,7 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from grader.core.states import Backend, CaseRunState, ExecutionMode, Precision, values
-from grader.models import CaseRun, Event, User
+from grader.core.models import CaseRun, Event, User
 
 BACKENDS = tuple(values(Backend))
 PRECISIONS = tuple(values(Precision))

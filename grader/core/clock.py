@@ -1,6 +1,6 @@
 """The one clock the service dates things by: naive UTC "now", shifted for a rehearsal or frozen by a test.
 
-Every service, page, worker and the reconciler reads `now()` (also `grader.models.utcnow`, the name the tables'
+Every service, page, worker and the reconciler reads `now()` (also `grader.core.models.utcnow`, the name the tables'
 defaults and the services import), never the system clock, so that:
 - a test pins "now" to an instant of its own (`frozen(at)`; in the suite, `@pytest.mark.clock("...")`) and its
   literal due, open and close times mean the same thing on every calendar day;
@@ -17,7 +17,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import UTC, datetime, timedelta
 
-from grader.settings import settings
+from grader.core.settings import settings
 
 __all__ = ["frozen", "now", "parse_instant"]
 

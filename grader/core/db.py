@@ -7,7 +7,7 @@ from pathlib import Path
 from sqlalchemy import Engine, create_engine, event
 from sqlalchemy.orm import Session
 
-from grader.settings import settings
+from grader.core.settings import settings
 
 MIGRATIONS = Path(__file__).resolve().parent.parent / "migrations"
 _engine: Engine | None = None

@@ -1,7 +1,7 @@
 """Grading a submission under a rubric version and storing the grade: the one place it happens.
 
 Used by the worker's grade task (worker.grading), a checkpoint sheet graded when it is submitted
-(grader.services.submissions) and a committed regrade (grader.services.regrade). Scoring reads only the stored
+(grader.services.submissions.submit) and a committed regrade (grader.services.rubrics.regrade). Scoring reads only the stored
 measurements of the submission's case runs (`lifecycle.stored_result`); nothing here runs a case or draws.
 """
 
@@ -18,7 +18,7 @@ from grader.core.lti_outbox import scores_changed
 from grader.core.overrides import current_overrides, overridden_report
 from grader.core.rubrics import current_grade
 from grader.core.states import SubmissionState
-from grader.models import Grade, Regrade, Submission, utcnow
+from grader.core.models import Grade, Regrade, Submission, utcnow
 
 
 def score(submission: Submission, book) -> rubric.GradeReport:
@@ -35,7 +35,7 @@ def store_grade(*, session: Session, submission: Submission, book, report: rubri
     drawing (a checkpoint set, or a regrade that evaluated the check again); otherwise `completed_at` stays empty
     until worker.grading.complete_grade adds them. A regrade's grade supersedes the current one, kept in the history;
     any other grading moves the submission to graded with an event naming the rubric version and `detail`: never the
-    scores, which a student may not be shown yet (grader.services.visibility)."""
+    scores, which a student may not be shown yet (grader.services.submissions.visibility)."""
     now = now or utcnow()
     if regrade is not None:
         current = current_grade(session, submission.id, report=False)

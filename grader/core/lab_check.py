@@ -64,7 +64,7 @@ def _service_notes(lab: Mapping[str, CaseResult], reused: Mapping[str, int]) -> 
 def output_location(results: Iterable[CaseResult], figures: list[Path] | None, *, artifacts_dir: Path) -> OutputLocation:
     """Every accepted result's arrays.npz and every figure under artifacts_dir, and artifacts_dir outside version
     control (or ignored by it). figures None: the service wrote no figure file (its charts are drawn in the reader's
-    browser from the stored arrays, grader/services/figure_series.py), so only the arrays are checked."""
+    browser from the stored arrays, grader/services/reports/series.py), so only the arrays are checked."""
     root = artifacts_dir.resolve()
     in_browser, figures = figures is None, list(figures or [])
     accepted = [r for r in results if r.ok and r.out_dir]
@@ -114,7 +114,7 @@ def lab_check(results: Mapping[str, CaseResult], *, figures: list | None, rubric
               artifacts_dir: Path) -> tuple[CheckOutcome | None, str]:
     """(the lab check of the submission's runs, or None, and a note for its event). A bug in evaluating the check
     never blocks or changes a grade: the grade then stores no check and the note says why. The note leaves the verdict
-    to the report: a student sees the check only once no item of the grade is withheld (grader.services.visibility)."""
+    to the report: a student sees the check only once no item of the grade is withheld (grader.services.submissions.visibility)."""
     try:
         check = submission_check(results, figures=figures, artifacts_dir=artifacts_dir, rubric=rubric, reused=reused)
     except Exception as exc:  # noqa: BLE001 - the evidence of a check bug is the event, the grade stands

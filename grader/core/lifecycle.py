@@ -24,8 +24,8 @@ from sqlalchemy.orm import Session, object_session
 from rubric import CaseResult, Provenance, parse_case
 from rubric.metrics import parse_metrics
 
-from grader.models import CaseEvidence, CaseRun, Event, Grade, Measurement, Submission, utcnow
-from grader.settings import settings
+from grader.core.models import CaseEvidence, CaseRun, Event, Grade, Measurement, Submission, utcnow
+from grader.core.settings import settings
 from grader.core import content_key
 from grader.core.states import TERMINAL, CaseRunPurpose, CaseRunState, SubmissionState
 

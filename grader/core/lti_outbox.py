@@ -1,6 +1,6 @@
 """Marking an assignment's counted scores as changed for the LMS gradebooks, in the change's own transaction.
 
-The neutral core holds this half of grader.services.lti_outbox so that grading (grader.core.grading.store_grade,
+The neutral core holds this half of grader.services.lti.outbox so that grading (grader.core.grading.store_grade,
 called by the worker and by a regrade) can mark without importing a service; sending is the service's half."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from sqlalchemy import case, exists, select
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.orm import Session
 
-from grader.models import Assignment, Course, LtiContext, LtiLineItem, LtiOutbox, LtiRegistration, utcnow
+from grader.core.models import Assignment, Course, LtiContext, LtiLineItem, LtiOutbox, LtiRegistration, utcnow
 
 
 def _has_gradebook(session: Session, course_id: int) -> bool:

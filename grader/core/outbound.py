@@ -36,7 +36,7 @@ from urllib3.connectionpool import HTTPConnectionPool, HTTPSConnectionPool
 from urllib3.exceptions import ConnectTimeoutError, NameResolutionError, NewConnectionError
 from urllib3.util.timeout import _DEFAULT_TIMEOUT
 
-from grader.settings import settings
+from grader.core.settings import settings
 
 __all__ = ["OutboundError", "session", "url_refusal", "address_refusal"]
 

@@ -1,6 +1,6 @@
 """The one rule by which an instructor's override reaches a score: a measured report with the submission's current
 overrides applied. It lives in the core because grading (grader.core.grading.store_grade) applies it to every grade it
-stores, so a submission graded again (a re-sent case run) keeps its overrides; grader.services.overrides writes them.
+stores, so a submission graded again (a re-sent case run) keeps its overrides; grader.services.submissions.overrides writes them.
 
 An overridden item keeps what was measured: its `verdict`, `measured_score` and `measured_max_score` beside the
 `override` {score, comment, by, at}; its `score` is the override and it counts its full points (even an inconclusive
@@ -14,7 +14,7 @@ from collections.abc import Iterable
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from grader.models import Override
+from grader.core.models import Override
 
 OVERRIDE_KEYS = ("measured_score", "measured_max_score", "override")
 

@@ -15,7 +15,7 @@ from sqlalchemy.orm import Session, defer
 from rubric.governance import RubricGovernanceError, publish_version, rubric_changes
 from rubric.rubrics import load_rubric, parse_rubric, rubric_versions, version_key
 
-from grader.models import Grade, Regrade, RubricVersion, User
+from grader.core.models import Grade, Regrade, RubricVersion, User
 
 
 def current_grade(session: Session, submission_id: int, *, report: bool = True) -> Grade | None:

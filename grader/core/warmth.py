@@ -19,7 +19,7 @@ from pathlib import Path
 
 import redis
 
-from grader.settings import settings
+from grader.core.settings import settings
 
 __all__ = ["RECORD_TTL_S", "RENEW_S", "WorkerWarmth", "forget", "last_warm_up_s", "live", "record",
            "record_warm_up", "warm_backends"]

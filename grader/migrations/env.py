@@ -1,10 +1,10 @@
-"""Alembic environment: the URL from grader settings unless the caller set one; metadata from grader.models."""
+"""Alembic environment: the URL from grader settings unless the caller set one; metadata from grader.core.models."""
 
 from alembic import context
 from sqlalchemy import create_engine
 
-from grader.models import Base
-from grader.settings import settings
+from grader.core.models import Base
+from grader.core.settings import settings
 
 config = context.config
 url = config.get_main_option("sqlalchemy.url") or settings.database_url

@@ -1,7 +1,7 @@
 """Who is looking at a page: a server-side sign-in session named by the cookie, or the API's `Authorization: Bearer`
 header.
 
-Signing in with a token opens a session (grader.services.sessions); the cookie holds only that session's random
+Signing in with a token opens a session (grader.services.identity.sessions); the cookie holds only that session's random
 secret (HttpOnly, SameSite=Strict, Secure over https and in production), never the token. It stops working when the
 session is idle too long, reaches its lifetime, or is revoked by sign-out or by revoking its token. The API accepts
 only the header, so a page can never be used to submit on a student's behalf from another site; the pages' own
@@ -14,12 +14,12 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
-from grader.services import access, accounts, assignments, sessions
-from grader.api.deps import SessionDep
-from grader.core.states import STAFF, Role
-from grader.models import Assignment, Course, User
+from grader.services.identity import access, accounts, sessions
+from grader.services.setup import assignments
+from grader.web.deps import SessionDep
+from grader.core.models import Assignment, Course, User
 from grader.services.errors import Forbidden, NotFound
-from grader.settings import settings
+from grader.core.settings import settings
 
 COOKIE = "grader_session"
 
@@ -50,16 +50,29 @@ def clear_session_cookie(response) -> None:
 
 
 class SignInRequired(Exception):
-    """Nobody is signed in: the page answers with a redirect to the sign-in form (grader.pages.errors)."""
+    """Nobody is signed in: a page answers with a redirect to the sign-in form, what a page's script fetches (a
+    chart, the charts' series) with a bare 401 (grader.pages.errors)."""
+
+    def __init__(self, *, fetched: bool = False):
+        super().__init__("sign in first")
+        self.fetched = fetched
 
 
 def signed_in(user: PageUser) -> User:
+    """The one way a page requires a user: declare `user: SignedIn` (or a role's dependency below built on it)."""
     if user is None:
         raise SignInRequired()
     return user
 
 
+def signed_in_fetch(user: PageUser) -> User:
+    if user is None:
+        raise SignInRequired(fetched=True)
+    return user
+
+
 SignedIn = Annotated[User, Depends(signed_in)]
+SignedInFetch = Annotated[User, Depends(signed_in_fetch)]
 
 
 def staff_course(course: str, session: SessionDep, user: SignedIn) -> Course:
@@ -75,7 +88,7 @@ def staff_course(course: str, session: SessionDep, user: SignedIn) -> Course:
 
 def instructor_course(course: str, session: SessionDep, user: SignedIn) -> Course:
     found = staff_course(course, session, user)
-    if user.role != Role.INSTRUCTOR:
+    if not access.is_instructor(user):
         raise NotFound(f"page of course {course}")
     return found
 
@@ -90,7 +103,7 @@ def instructors_assignment(assignment_id: int, session: SessionDep, user: Signed
         found = assignments.assignment_of(session=session, user=user, assignment_id=assignment_id)
     except NotFound:
         found = None
-    if found is None or user.role != Role.INSTRUCTOR:
+    if found is None or not access.is_instructor(user):
         raise NotFound(f"assignment {assignment_id}")
     return found
 
@@ -100,7 +113,7 @@ InstructorsAssignment = Annotated[Assignment, Depends(instructors_assignment)]
 
 def signed_in_staff(user: SignedIn) -> User:
     """A signed-in instructor or auditor; a student gets the not-found page (the audit log is not theirs to know)."""
-    if user.role not in STAFF:
+    if not access.is_staff(user):
         raise NotFound("audit log")
     return user
 

@@ -1,4 +1,4 @@
-"""How a page answers a refusal (installed by grader.main through grader.api.errors, the one place errors become
+"""How a page answers a refusal (installed by grader.main through grader.web.errors, the one place errors become
 answers): nobody signed in -> the sign-in form, coming back here after; a thing the caller may not see or act on
 (NotFound, Forbidden) -> the not-found page, revealing nothing; any other domain error -> the error page with the
 rule it broke. The API under /v1 answers the same errors as JSON."""
@@ -36,8 +36,8 @@ def page_error(request: Request, exc: DomainError, code: int) -> Response:
                                           status_code=code)
 
 
-async def _sign_in(request: Request, _: SignInRequired) -> Response:
-    return sign_in_redirect(request)
+async def _sign_in(request: Request, exc: SignInRequired) -> Response:
+    return Response(status_code=status.HTTP_401_UNAUTHORIZED) if exc.fetched else sign_in_redirect(request)
 
 
 async def _cross_site(request: Request, exc: CrossSiteRefused) -> Response:

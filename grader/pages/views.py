@@ -15,11 +15,11 @@ from sqlalchemy.orm import object_session
 
 from grader.core.rubrics import stored_version
 from grader.core.states import CaseRunState, SubmissionState
-from grader.models import CaseRun, Grade, Override, ReviewRequest, Submission, utcnow
-from grader.services.exports import evidence_names
-from grader.services.overrides import override_history
-from grader.services.review_requests import state_of
-from grader.services.visibility import GradeView
+from grader.core.models import CaseRun, Grade, Override, ReviewRequest, Submission, utcnow
+from grader.services.reports.exports import evidence_names
+from grader.services.submissions.overrides import override_history
+from grader.services.submissions.review_requests import state_of
+from grader.services.submissions.visibility import GradeView
 from rubric.metrics import TUMBLE_EXPLANATION, tumble_angle_deg
 
 # A case still running after this long on a fresh worker is most likely compiling Genesis kernels (~100 s once).
@@ -63,7 +63,7 @@ class ItemRow:
     points: float
     counted: bool
     feedback: str
-    # An instructor's override (grader.services.overrides): {score, comment, by, at}, with the measured score beside it.
+    # An instructor's override (grader.services.submissions.overrides): {score, comment, by, at}, with the measured score beside it.
     override: dict | None = None
     measured_score: float | None = None
     # The runs this shown item reads whose measurements decide a withheld item: its evidence waits with them.
@@ -221,7 +221,7 @@ def _rubric(grade: Grade):
 
 def report_view(submission: Submission, grade: GradeView | None,
                 withheld: Mapping[str, str] | None = None) -> ReportView:
-    """`grade`: the current grade as the reader may see it (grader.services.visibility), None when none is shown.
+    """`grade`: the current grade as the reader may see it (grader.services.submissions.visibility), None when none is shown.
     `withheld`: {case run: why} of the runs whose measurements the reader may not see yet (GradeView.withheld_runs):
     listed with their state and why, without provenance, files or lanes."""
     now = utcnow()
@@ -240,7 +240,7 @@ def report_view(submission: Submission, grade: GradeView | None,
     report = grade.report
     rubric = _rubric(grade.stored)
     for item in report.get("items", []):
-        override = item.get("override")  # never on a withheld item: grader.services.visibility masked it away
+        override = item.get("override")  # never on a withheld item: grader.services.submissions.visibility masked it away
         counted = override is not None or item["verdict"] not in ("inconclusive", "pending")
         view.items.append(ItemRow(
             id=item["id"], part=item["part"], kind=item["kind"], question=item["question"],

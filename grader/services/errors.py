@@ -1,4 +1,4 @@
-"""The domain errors services raise; the web layer turns each into an answer in one place (grader.api.errors).
+"""The domain errors services raise; the web layer turns each into an answer in one place (grader.web.errors).
 
     DomainError
     ├── NotFound       no such thing, or the caller may not know it exists          (API 404, the not-found page)

@@ -1,5 +1,5 @@
 /* The report's figures (section #figures of templates/report.html), drawn in the reader's browser with uPlot from
- * the measured series the app serves (each chart's data-src, grader/services/figure_series.py).
+ * the measured series the app serves (each chart's data-src, grader/services/reports/series.py).
  *
  * Why here and not on the server: the series are a few tens of kB read from the database by any API host, where
  * drawing 18 PNGs cost a worker more CPU than the simulation (docs/benchmark.md). Interactive: drag across a chart

@@ -67,8 +67,8 @@ def app_on(url: str, tmp_path, monkeypatch) -> Iterator[Api]:
     from grader import dispatch
     from grader.core import db
     from grader.main import app
-    from grader.services import quotas
-    from grader.settings import settings
+    from grader.services.identity import quotas
+    from grader.core.settings import settings
 
     monkeypatch.setattr(settings, "database_url", url)
     monkeypatch.setattr(settings, "artifacts_dir", tmp_path / "artifacts")

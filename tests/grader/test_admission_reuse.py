@@ -21,9 +21,10 @@ def grades_sent(api, monkeypatch) -> list[int]:
 def store_measurements(names: set[str] | None = None) -> dict[str, int]:
     """bob's earlier submission of the reference sheet, its cases (or those named) done and stored as Measurements
     under the worker's content key, as a worker that measured them would have left them; their ids by case name."""
-    from grader.services import accounts, sheets, submissions
+    from grader.services.identity import accounts
+    from grader.services.submissions import sheets, submit as submissions
     from grader.core.db import new_session
-    from grader.models import Measurement, User
+    from grader.core.models import Measurement, User
     from grader.core import content_key as reuse
 
     out = {}
@@ -57,7 +58,7 @@ def post(api, who="alice", **options) -> dict:
 
 def runs_of(submission_id: int):
     from grader.core.db import new_session
-    from grader.models import CaseRun
+    from grader.core.models import CaseRun
 
     with new_session() as session:
         return {r.name: r for r in session.scalars(select(CaseRun).where(CaseRun.submission_id == submission_id))}

@@ -33,7 +33,7 @@ def test_only_the_hash_of_a_token_is_stored(api):
 
     from grader.core.db import new_session
     from grader.core.security import hash_token
-    from grader.models import ApiToken
+    from grader.core.models import ApiToken
 
     with new_session() as session:
         stored = set(session.scalars(select(ApiToken.token_hash)))

@@ -13,7 +13,7 @@ from tests.factories import reference_sheet
 
 def counts() -> tuple[int, int]:
     from grader.core.db import new_session
-    from grader.models import CaseRun, Submission
+    from grader.core.models import CaseRun, Submission
 
     with new_session() as session:
         return (session.scalar(select(func.count()).select_from(Submission)),
@@ -84,7 +84,7 @@ def test_non_finite_numbers_are_refused(api, value):
 
 
 def test_oversized_body_gets_413_before_parsing(api):
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     sheet = copy.deepcopy(reference_sheet())
     sheet["answers"]["A5"]["explanation"] = "x" * (settings.max_body_bytes + 10)

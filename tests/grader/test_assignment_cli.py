@@ -103,7 +103,7 @@ def test_a_student_submits_to_an_assignment_and_sees_the_withheld_items_pending(
     import yaml
 
     from grader import client as client_module
-    from grader.settings import settings
+    from grader.core.settings import settings
     from tests.grader.test_assignments import checkpoint_sheet
 
     monkeypatch.setattr(client_module, "Client", client_on)

@@ -123,7 +123,7 @@ def test_the_hourly_limit_is_checked_against_the_last_60_minutes(api):
     from datetime import timedelta
 
     from grader.core.db import new_session
-    from grader.models import Submission
+    from grader.core.models import Submission
 
     aid = create(api, max_per_hour=1).json()["id"]
     sid = submit(api, aid).json()["id"]
@@ -136,7 +136,7 @@ def test_the_hourly_limit_is_checked_against_the_last_60_minutes(api):
 
 
 def test_lateness_reads_in_days_hours_and_minutes_with_the_days_charged():
-    from grader.services.assignments import late_text
+    from grader.services.setup.assignments import late_text
 
     assert [late_text(s) for s in (0, 59, 7200, 27914, 86400, 93780)] == [
         "on time", "59 s late (1 day charged)", "2 h late (1 day charged)", "7 h 45 min late (1 day charged)",

@@ -25,7 +25,7 @@ def create(api, who="prof", course="l03", **over):
 
 def assignment_count() -> int:
     from grader.core.db import new_session
-    from grader.models import Assignment
+    from grader.core.models import Assignment
 
     with new_session() as session:
         return session.scalar(select(func.count()).select_from(Assignment))
@@ -137,7 +137,7 @@ def lesson_cases_stored(request):
 def stored() -> tuple[int, int]:
     """Submissions and case runs stored in course l03 (the lesson's measured cases belong to another course's)."""
     from grader.core.db import new_session
-    from grader.models import CaseRun, Course, Submission
+    from grader.core.models import CaseRun, Course, Submission
 
     with new_session() as session:
         course = select(Course.id).where(Course.name == "l03").scalar_subquery()
@@ -154,7 +154,7 @@ def refused(response, *words: str) -> None:
 
 def test_a_checkpoint_submission_runs_no_case_and_is_graded_at_once_on_its_items_only(api, lesson_measured):
     from grader.core.db import new_session
-    from grader.models import CaseRun
+    from grader.core.models import CaseRun
 
     aid = create(api).json()["id"]
     response = submit(api, aid)
@@ -203,7 +203,7 @@ def test_a_checkpoint_submission_with_one_lesson_case_never_measured_queues_it(a
     from sqlalchemy import delete
 
     from grader.core.db import new_session
-    from grader.models import Measurement
+    from grader.core.models import Measurement
 
     with new_session() as session:  # friction-baseline was never measured under this key (say, another engine)
         session.execute(delete(Measurement).where(Measurement.case_run_id == lesson_measured["friction-baseline"]))
@@ -317,8 +317,8 @@ def test_a_late_attempt_is_penalized_per_day_and_the_export_shows_raw_beside_cou
 
 
 def test_the_penalty_counts_each_started_day_and_stops_at_the_cap():
-    from grader.services.assignments import penalty_fraction
-    from grader.models import Assignment
+    from grader.services.setup.assignments import penalty_fraction
+    from grader.core.models import Assignment
 
     a = Assignment(late_penalty_per_day=0.25, late_penalty_cap=0.6)
     assert [penalty_fraction(a, s) for s in (0, 1, 86400, 86401, 3 * 86400)] == [0.0, 0.25, 0.25, 0.5, 0.6]
@@ -389,7 +389,7 @@ def test_a_roster_import_issues_each_new_student_one_token_and_a_reimport_duplic
         ("s1001", False, True, "Ada Lovelace"), ("s1002", False, True, "A. M. Turing"),
         ("s1003", True, False, "Grace Hopper")]
     from grader.core.db import new_session
-    from grader.models import ApiToken, User
+    from grader.core.models import ApiToken, User
 
     with new_session() as session:
         assert session.scalar(select(func.count()).select_from(User).where(User.name.like("s100%"))) == 3
@@ -413,7 +413,7 @@ def test_a_bad_roster_is_refused_whole_naming_line_and_rule(api, text, field, ru
     assert response.status_code == 422, response.text
     assert any(e["field"] == field and rule in e["rule"] for e in response.json()["errors"]), response.json()
     from grader.core.db import new_session
-    from grader.models import User
+    from grader.core.models import User
 
     with new_session() as session:  # not even the good row was stored
         assert session.scalar(select(func.count()).select_from(User).where(User.name == "ok1")) == 0
@@ -426,7 +426,7 @@ def test_only_an_instructor_imports_a_roster(api):
 
 
 def test_two_submissions_racing_for_one_attempt_number_let_one_in(api, monkeypatch):
-    from grader.services import assignments
+    from grader.services.setup import assignments
 
     aid = create(api, max_attempts=3).json()["id"]
     assert submit(api, aid).status_code == 202

@@ -13,7 +13,7 @@ def _graded_like(api):
     """A submission and one 'done' case run as stored rows, plus one audit entry about it (no engine needed to
     test access rules and the append-only guard)."""
     from grader.core.db import new_session
-    from grader.models import CaseRun
+    from grader.core.models import CaseRun
 
     response = api.client.post("/v1/submissions", json={"sheet": reference_sheet() | {"student": "alice"}},
                                headers=api.as_("alice"))
@@ -64,7 +64,7 @@ def test_csv_export_has_a_row_per_entry(api):
 
 def test_a_rerun_with_no_worker_on_the_queue_is_refused_at_once_and_nothing_is_stored(api):
     from grader.core.db import new_session
-    from grader.models import CaseRun
+    from grader.core.models import CaseRun
 
     run_id, _ = _graded_like(api)
     sent = len(api.sent)
@@ -82,7 +82,7 @@ def test_a_rerun_with_no_worker_on_the_queue_is_refused_at_once_and_nothing_is_s
 
 def test_an_accepted_rerun_is_an_audit_run_that_never_counts_in_the_grade(api):
     from grader.core.db import new_session
-    from grader.models import Submission
+    from grader.core.models import Submission
 
     run_id, _ = _graded_like(api)
     response = api.client.post(f"/v1/case-runs/{run_id}/audit-reruns", json={"precision": "64", "mode": "isolated"},
@@ -93,7 +93,7 @@ def test_an_accepted_rerun_is_an_audit_run_that_never_counts_in_the_grade(api):
     assert body["spec"]["precision"] == "64" and body["name"] == "audit-1:N1"
     assert api.sent[-1] == (body["id"], 1, "cpu")
     with new_session() as session:
-        from grader.models import CaseRun
+        from grader.core.models import CaseRun
 
         submission = session.get(Submission, session.get(CaseRun, run_id).submission_id)
         assert body["id"] not in [r.id for r in submission.case_runs]
@@ -102,7 +102,7 @@ def test_an_accepted_rerun_is_an_audit_run_that_never_counts_in_the_grade(api):
 
 def test_the_database_refuses_to_change_or_delete_an_entry(api):
     from grader.core.db import new_session
-    from grader.models import AuditEntry
+    from grader.core.models import AuditEntry
 
     _, entry_id = _graded_like(api)
     with new_session() as session:

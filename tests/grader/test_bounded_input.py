@@ -10,8 +10,8 @@ import yaml
 from fastapi.testclient import TestClient
 
 from grader.core.db import new_session
-from grader.models import Draft, User
-from grader.services import sheet_form
+from grader.core.models import Draft, User
+from grader.services.submissions import sheet_form
 from tests.factories import REFERENCE_YAML, reference_sheet
 from tests.grader.test_sheet_form import form_fields, import_yaml
 from tests.grader.test_submit_confirm import confirm_fields
@@ -64,7 +64,7 @@ def test_a_confirmed_submission_of_a_colliding_draft_is_refused_naming_the_key(a
         draft.sheet = COLLIDING
         session.commit()
     fields = confirm_fields(shown.text)
-    from grader.pages.sheet_form import sheet_digest
+    from grader.pages.submissions.sheet_form import sheet_digest
 
     fields["digest"] = sheet_digest(COLLIDING)
     refused = api.client.post("/sheet", headers=api.as_("alice"), data=fields, follow_redirects=False)
@@ -168,7 +168,7 @@ def test_a_roster_with_cr_only_line_endings_is_read_line_by_line(api):
 
 def test_only_the_courses_instructor_imports_a_roster_even_past_the_route():
     """The service checks the role itself (issue 31, item 8): a loosened route dependency lets nobody else in."""
-    from grader.services import roster
+    from grader.services.setup import roster
     from grader.services.errors import Forbidden, NotFound
 
     class Person:
@@ -185,7 +185,7 @@ def test_only_the_courses_instructor_imports_a_roster_even_past_the_route():
 
 
 def test_a_500_carries_the_security_headers(api, monkeypatch):
-    from grader.services import submissions
+    from grader.services.submissions import submit as submissions
 
     def broken(**_):
         raise RuntimeError("a bug")

@@ -103,7 +103,7 @@ def test_operators_get_flower_on_the_same_broker_and_loopback_only(compose):
 def test_the_api_is_reached_only_through_a_tls_and_buffering_proxy(compose):
     """Slow clients (issue 26): nginx reads headers and whole bodies under its own timeouts before the API sees a
     request, terminates TLS, and hands the API the client's address in a header the client cannot write."""
-    from grader.settings import Settings
+    from grader.core.settings import Settings
 
     services = compose["services"]
     api, proxy = services["api"], services["proxy"]

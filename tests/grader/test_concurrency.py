@@ -21,7 +21,7 @@ def test_fifty_concurrent_readers_all_get_answers(api, monkeypatch):
     from fastapi.testclient import TestClient
 
     from grader.main import app
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     # Fifty clients, though in-process they share one address: its per-client cap must not refuse them.
     monkeypatch.setattr(settings, "client_max_in_flight", CLIENTS)
@@ -56,7 +56,7 @@ def _graded(submission_id: int) -> None:
     from rubric.scoring import GradeReport
 
     from grader.core.db import new_session
-    from grader.models import Grade, Submission
+    from grader.core.models import Grade, Submission
 
     report = GradeReport(lesson="L03", student="alice", rubric_version="2", rubric_hash="x", engine_version="1.3.3",
                          total=0, max_total=0, complete=True, items=[], config_findings=[])
@@ -69,7 +69,7 @@ def _graded(submission_id: int) -> None:
 
 def test_the_pool_holds_a_connection_for_every_admitted_request(tmp_path):
     from grader.core.db import make_engine
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     engine = make_engine(f"sqlite:///{tmp_path / 'p.db'}")
     try:

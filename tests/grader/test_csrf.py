@@ -9,7 +9,7 @@ import pytest
 from sqlalchemy import select
 
 from grader.core.db import new_session
-from grader.models import WebSession
+from grader.core.models import WebSession
 from tests.factories import rubric_v3
 
 CROSS_SITE = {"Origin": "https://evil.example", "Sec-Fetch-Site": "cross-site"}

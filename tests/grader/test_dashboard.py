@@ -10,7 +10,7 @@ import pytest
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from grader.models import CaseRun, Event, Grade, Measurement, Submission, utcnow
+from grader.core.models import CaseRun, Event, Grade, Measurement, Submission, utcnow
 from tests.factories import reference_sheet
 
 

@@ -1,4 +1,4 @@
-"""Conditional reads of a complete report (grader.api.etag) over the real app in-process (SQLite): 304 to a browser
+"""Conditional reads of a complete report (grader.web.etag) over the real app in-process (SQLite): 304 to a browser
 that holds the same answer, a new ETag whenever what the reader may see changes (a release, a regrade, the page's
 language), none while a report is not complete, and a cached body never served to another reader. Grades are real:
 checkpoint sheets graded on the lesson's cases as really measured (the session's Genesis runs)."""
@@ -18,7 +18,7 @@ READS = ("/submissions/{sid}", "/submissions/{sid}/results.json", "/v1/submissio
 
 @pytest.fixture(autouse=True)
 def fresh_cache():
-    from grader.api.etag import BODIES
+    from grader.web.etag import BODIES
 
     BODIES.clear()  # ids repeat across the tests' databases
     yield
@@ -60,7 +60,7 @@ def test_an_unchanged_complete_report_answers_304_with_no_body_on_every_read(api
         full = read(api, path, tag='"not-this-one"')
         assert full.status_code == 200 and full.headers["etag"] == tag and full.content
     # The cached page is the page: the same bytes as one built afresh.
-    from grader.api.etag import BODIES
+    from grader.web.etag import BODIES
 
     cached = read(api, f"/submissions/{sid}").text
     BODIES.clear()

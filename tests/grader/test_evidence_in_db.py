@@ -43,7 +43,7 @@ def run_every_sent_case(api, measured) -> None:
 
 def evidence_rows() -> int:
     from grader.core.db import new_session
-    from grader.models import CaseEvidence
+    from grader.core.models import CaseEvidence
 
     with new_session() as session:
         return session.scalar(select(func.count()).select_from(CaseEvidence))
@@ -66,8 +66,8 @@ def stored_bytes() -> dict[str, int]:
 
 def graded_after_the_folder_is_lost(api, measured) -> None:
     from grader.core.db import new_session
-    from grader.models import Event, Submission
-    from grader.settings import settings
+    from grader.core.models import Event, Submission
+    from grader.core.settings import settings
     from worker.grading import complete_grade, grade_submission
 
     response = api.client.post("/v1/submissions", json={"sheet": reference_sheet()}, headers=api.as_("alice"))

@@ -12,7 +12,7 @@ from tests.factories import reference_sheet
 
 def stored() -> tuple[int, int]:
     from grader.core.db import new_session
-    from grader.models import CaseRun, Submission
+    from grader.core.models import CaseRun, Submission
 
     with new_session() as session:
         return (session.scalar(select(func.count()).select_from(Submission)),
@@ -67,8 +67,8 @@ def test_staff_choose_a_backend_a_worker_listens_on_and_it_goes_to_that_queue_on
 
 def test_a_students_waiting_runs_are_capped_and_freed_as_they_finish(api, monkeypatch):
     from grader.core.db import new_session
-    from grader.models import CaseRun
-    from grader.settings import settings
+    from grader.core.models import CaseRun
+    from grader.core.settings import settings
 
     monkeypatch.setattr(settings, "student_waiting_runs_max", 12)
     first = submit(api)
@@ -86,7 +86,7 @@ def test_a_students_waiting_runs_are_capped_and_freed_as_they_finish(api, monkey
 
 
 def test_students_runs_interleave_by_how_many_of_their_own_wait_ahead(api, monkeypatch):
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     monkeypatch.setattr(settings, "student_waiting_runs_max", 100)
     assert submit(api, who="alice").status_code == 202
@@ -101,8 +101,8 @@ def test_students_runs_interleave_by_how_many_of_their_own_wait_ahead(api, monke
 
 def test_audit_reruns_are_not_queued_twice_and_are_rate_limited(api, monkeypatch):
     from grader.core.db import new_session
-    from grader.models import CaseRun
-    from grader.settings import settings
+    from grader.core.models import CaseRun
+    from grader.core.settings import settings
 
     monkeypatch.setattr(settings, "rate_limit_audit_reruns", "2/hour")
     assert submit(api).status_code == 202

@@ -1,4 +1,4 @@
-"""The report's figures as data (grader/services/figure_series.py, /submissions/ID/series.json): the measured series
+"""The report's figures as data (grader/services/reports/series.py, /submissions/ID/series.json): the measured series
 read back from the database, to whoever may read the submission, with nothing of a withheld item in them; the report
 lists its charts with the series URL and the worker writes no figure file. Real measured runs (the session's Genesis
 cases), the real app in-process on SQLite, the worker's own grading functions."""
@@ -24,7 +24,7 @@ def _series(api, sid, who):
 
 
 def test_the_series_are_the_stored_arrays_of_every_run_to_its_readers_only(api, measured):
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     sid = free_graded(api, measured, complete=True)
     response = _series(api, sid, "alice")

@@ -14,7 +14,7 @@ from fastapi.routing import iter_route_contexts
 from fastapi.testclient import TestClient
 
 from grader.main import app
-from grader.settings import settings
+from grader.core.settings import settings
 from tests.factories import reference_sheet
 from tests.grader.test_assignments import create
 

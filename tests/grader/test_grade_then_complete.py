@@ -17,8 +17,8 @@ from tests.factories import mark_measured, reference_sheet, sheet_results
 def _submission_ready_to_grade(api, measured) -> int:
     """Alice's reference sheet, its case runs stored as measured (the session's real results), now 'grading'."""
     from grader.core.db import new_session
-    from grader.models import Submission, utcnow
-    from grader.settings import settings
+    from grader.core.models import Submission, utcnow
+    from grader.core.settings import settings
 
     response = api.client.post("/v1/submissions", json={"sheet": reference_sheet()}, headers=api.as_("alice"))
     assert response.status_code == 202, response.text
@@ -39,8 +39,8 @@ def _submission_ready_to_grade(api, measured) -> int:
 def _lease_passes(submission_id: int) -> None:
     """The grade task was sent longer than a lease ago (as if its worker died while drawing)."""
     from grader.core.db import new_session
-    from grader.models import Submission, utcnow
-    from grader.settings import settings
+    from grader.core.models import Submission, utcnow
+    from grader.core.settings import settings
 
     with new_session() as session:
         session.get(Submission, submission_id).grading_at = utcnow() - timedelta(seconds=settings.lease_s + 1)
@@ -49,7 +49,7 @@ def _lease_passes(submission_id: int) -> None:
 
 def _states(submission_id: int) -> list[str]:
     from grader.core.db import new_session
-    from grader.models import Event
+    from grader.core.models import Event
 
     with new_session() as session:
         return [e.state for e in session.scalars(select(Event).where(Event.submission_id == submission_id,
@@ -60,7 +60,7 @@ def _states(submission_id: int) -> list[str]:
 def test_the_score_is_stored_first_and_the_figures_and_lab_check_join_it_once(api, measured):
     from grader.core.db import new_session
     from grader.reconcile import find_and_requeue
-    from grader.settings import settings
+    from grader.core.settings import settings
     from worker.grading import complete_grade, grade_submission
 
     submission_id = _submission_ready_to_grade(api, measured)
@@ -119,8 +119,8 @@ def test_the_score_is_stored_first_and_the_figures_and_lab_check_join_it_once(ap
 def test_a_regrade_skips_a_grade_whose_figures_are_being_drawn(api, measured):
     from grader.core.db import new_session
     from grader.core.rubrics import current_grade
-    from grader.models import Submission
-    from grader.services.regrade import _regrade_one
+    from grader.core.models import Submission
+    from grader.services.rubrics.regrade import _regrade_one
     from rubric import load_rubric
     from worker.grading import grade_submission
 

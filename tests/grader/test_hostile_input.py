@@ -15,7 +15,7 @@ from tests.factories import reference_sheet
 
 def stored() -> dict[str, int]:
     from grader.core.db import new_session
-    from grader.models import CaseRun, Event, Submission
+    from grader.core.models import CaseRun, Event, Submission
 
     with new_session() as session:
         return {m.__tablename__: session.scalar(select(func.count()).select_from(m)) for m in (Submission, CaseRun, Event)}
@@ -69,7 +69,7 @@ BODIES = [
     ("integer-absurd", sheet_with("answers.C1.samples", "9" * 300).encode(), JSON, 422, "sheet.answers.C1.samples",
      "less than or equal"),
     ("list-absurd", sheet_with("answers.A1.samples_150", json.dumps(["N1"] * 50_000)).encode(), JSON, 422,
-     "sheet.answers.A1.samples_150", "at most 16 items"),  # the sheet's caps, before any work (grader.services.sheets)
+     "sheet.answers.A1.samples_150", "at most 16 items"),  # the sheet's caps, before any work (grader.services.submissions.sheets)
     ("string-absurd", big_sheet_explanation(500_000).encode(), JSON, 422, "sheet.answers.A5.explanation", "at most 4000"),
     ("substeps-absurd", sheet_with("configs.extension.substeps", "1000000000").encode(), JSON, 422,
      "sheet.configs.extension.substeps", "less than or equal"),
@@ -96,7 +96,7 @@ def test_a_hostile_submission_body_is_refused_naming_field_and_rule_and_nothing_
 
 
 def test_an_oversized_body_sent_in_chunks_without_a_length_is_refused(api):
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     body = big_sheet_explanation(settings.max_body_bytes).encode()
 
@@ -112,7 +112,7 @@ def test_an_oversized_body_sent_in_chunks_without_a_length_is_refused(api):
 
 
 def test_an_oversized_non_json_body_streamed_without_a_length_is_refused(api):
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     def chunks():
         for _ in range(settings.max_body_bytes // 50_000 + 2):
@@ -175,8 +175,8 @@ TRAVERSALS = ["..%2F..%2F..%2Fetc%2Fpasswd", "%2E%2E", "%2E%2E%2Fsecret.png", ".
                                       "/v1/submissions/{sid}/case-runs/{name}/files/spec.json"])
 def test_path_traversal_never_reaches_the_filesystem(api, alices, template, name):
     from grader.core.db import new_session
-    from grader.models import CaseRun
-    from grader.settings import settings
+    from grader.core.models import CaseRun
+    from grader.core.settings import settings
 
     secret = settings.artifacts_dir / "secret.png"  # what a traversal would try to read
     secret.parent.mkdir(parents=True, exist_ok=True)
@@ -207,7 +207,7 @@ def test_missing_and_malformed_tokens_get_401_and_store_nothing(api, headers):
 
 def test_another_students_or_courses_objects_are_not_found(api, alices):
     from grader.core.db import new_session
-    from grader.models import CaseRun
+    from grader.core.models import CaseRun
 
     with new_session() as session:
         run_id = session.scalars(select(CaseRun.id)).first()
@@ -223,7 +223,7 @@ def test_another_students_or_courses_objects_are_not_found(api, alices):
 
 
 def test_submissions_are_rate_limited_per_person_with_retry_after(api, monkeypatch):
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     monkeypatch.setattr(settings, "rate_limit_submissions", "3/minute")
     codes = [api.client.post("/v1/submissions", json={"sheet": reference_sheet()}, headers=api.as_("alice")).status_code
@@ -294,7 +294,7 @@ def test_the_audit_csv_writes_utc_with_an_offset():
     from datetime import datetime
     from types import SimpleNamespace
 
-    from grader.services.audit import entries_csv
+    from grader.services.reports.audit import entries_csv
 
     entry = SimpleNamespace(id=1, created_at=datetime(2026, 1, 2, 3, 4, 5), lesson="L03", case="N1",  # not a clock time: CSV format
                             left_case_run_id=1, right_case_run_id=2, left_variant="cpu/32/warm",

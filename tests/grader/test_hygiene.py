@@ -25,7 +25,7 @@ def _roster_students(api) -> dict[str, dict[str, str]]:
 
 def test_course_grade_exports_neutralise_ids_a_spreadsheet_would_evaluate(api):
     from grader.core import db
-    from grader.models import Grade, Submission
+    from grader.core.models import Grade, Submission
 
     students = _roster_students(api)
     for student, headers in students.items():
@@ -52,7 +52,7 @@ def test_the_audit_csv_neutralises_a_summary_a_spreadsheet_would_evaluate():
     from datetime import datetime
     from types import SimpleNamespace
 
-    from grader.services.audit import entries_csv
+    from grader.services.reports.audit import entries_csv
 
     entry = SimpleNamespace(id=1, created_at=datetime(2026, 1, 2, 3, 4, 5), lesson="L03", case="N1",  # not a clock time: CSV format
                             left_case_run_id=1, right_case_run_id=2, left_variant="cpu/32/warm",

@@ -25,10 +25,10 @@ from tests.grader.test_sheet_form import form_fields, import_yaml
 ROOT = Path(__file__).resolve().parents[2]
 TEMPLATES = ROOT / "grader" / "templates"
 # Every template a student's pages render (their own, included and imported ones).
-STUDENT_TEMPLATES = ["base.html", "course.html", "sheet_form.html", "submit_confirm.html", "progress.html",
-                     "_progress_live.html", "report.html", "_attempt.html", "_grade_history.html",
-                     "_item_review.html", "submissions.html", "sign_in.html", "sign_in_link.html", "error.html",
-                     "not_found.html", "lti_launched.html"]
+STUDENT_TEMPLATES = ["base.html", "reports/course.html", "submissions/sheet_form.html", "submissions/submit_confirm.html", "submissions/progress.html",
+                     "submissions/_progress_live.html", "submissions/report.html", "submissions/_attempt.html", "submissions/_grade_history.html",
+                     "submissions/_item_review.html", "submissions/submissions.html", "identity/sign_in.html", "identity/sign_in_link.html", "error.html",
+                     "not_found.html", "lti/lti_launched.html"]
 ZH = {"Accept-Language": "zh-CN,zh;q=0.9,en;q=0.8"}
 
 
@@ -112,9 +112,9 @@ def test_every_msgid_of_every_page_and_module_has_a_chinese_translation():
     """Staff pages too (dashboard, set-up, assignment forms, rubric review and draft, regrade, reviews, LTI admin):
     every msgid extracted from any template or module of grader/ has a zh msgstr (not absent, empty or fuzzy)."""
     used = extracted_msgids()
-    staff = {"dashboard.html", "setup.html", "assignment.html", "assignment_form.html", "rubrics.html",
-             "rubric_review.html", "rubric_draft.html", "regrade.html", "reviews.html", "lti_admin.html",
-             "roster_issued.html"}
+    staff = {"reports/dashboard.html", "setup/setup.html", "setup/assignment.html", "setup/assignment_form.html", "rubrics/rubrics.html",
+             "rubrics/rubric_review.html", "rubrics/rubric_draft.html", "rubrics/regrade.html", "submissions/reviews.html", "lti/lti_admin.html",
+             "setup/roster_issued.html"}
     names = {Path(name).name for name in used}
     assert staff | set(STUDENT_TEMPLATES) | {"i18n.py", "sheet_form.py"} <= names, sorted(names)
     assert len({m for ids in used.values() for m in ids}) > 600
@@ -259,8 +259,8 @@ def form_fields_of(page: str, form_id: str) -> dict[str, str]:
 
 @pytest.mark.clock("2026-12-10T00:00:00Z")  # the link below was used two days ago and expires in three weeks
 def test_service_messages_are_translated_with_their_values():
-    from grader.services.assignments import late_text
-    from grader.services.sign_in_links import refusal
+    from grader.services.setup.assignments import late_text
+    from grader.services.identity.sign_in_links import refusal
 
     late = late_text(26 * 3600 + 5 * 60)
     assert late == "1 d 2 h 5 min late (2 days charged)"
@@ -315,7 +315,7 @@ def test_questions_are_translated_beside_the_rubric_and_no_published_version_cha
     assert html.escape(table["questions"][question]) in chinese and html.escape(question) not in chinese
     assert html.escape(question) in api.client.get(f"/assignments/{aid}/sheet", headers=api.as_("alice")).text
     # Every label and choice the form shows has its Chinese.
-    from grader.services import sheet_form
+    from grader.services.submissions import sheet_form
     from rubric.sheet import Answers
 
     inputs = [i for item in Answers.model_fields
@@ -329,7 +329,7 @@ def test_the_grade_never_depends_on_the_language_of_the_page(api, lesson_measure
     from sqlalchemy import select
 
     from grader.core.db import new_session
-    from grader.models import Grade, Submission
+    from grader.core.models import Grade, Submission
     from tests.grader.test_assignments import checkpoint_sheet
 
     aid = create(api).json()["id"]

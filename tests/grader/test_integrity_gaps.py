@@ -50,7 +50,7 @@ def checkpoint_report(verdicts: dict[str, str] | None = None, points: dict[str, 
 def graded(aid: int, report, who: str = "alice") -> int:
     """A graded, complete submission of `who` to assignment `aid` holding `report`, stored as grading stores one."""
     from grader.core.grading import store_grade
-    from grader.models import Submission, User
+    from grader.core.models import Submission, User
 
     with _session() as session:
         user = session.scalar(select(User).where(User.name == who))
@@ -74,7 +74,7 @@ def grade_items(api, sid: int, who: str) -> tuple[dict, dict[str, dict]]:
 
 
 def override_rows(sid: int) -> int:
-    from grader.models import Override
+    from grader.core.models import Override
 
     with _session() as session:
         return session.scalar(select(func.count()).select_from(Override).where(Override.submission_id == sid))
@@ -159,8 +159,8 @@ def test_a_withheld_item_pends_its_points_whatever_its_verdict(api, verdict):
 # --- the per-student cap on waiting runs ----------------------------------------------------------------------------
 
 def test_a_students_running_runs_count_against_the_cap(api, monkeypatch):
-    from grader.models import CaseRun
-    from grader.settings import settings
+    from grader.core.models import CaseRun
+    from grader.core.settings import settings
 
     monkeypatch.setattr(settings, "student_waiting_runs_max", 12)
     first = submit_sheet(api)
@@ -176,7 +176,7 @@ def test_a_students_running_runs_count_against_the_cap(api, monkeypatch):
 
 @pytest.mark.parametrize("limit, accepted", [(18, True), (17, False)])
 def test_the_cap_takes_a_sheet_that_reaches_it_exactly_and_refuses_one_past_it(api, monkeypatch, limit, accepted):
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     monkeypatch.setattr(settings, "student_waiting_runs_max", limit)
     assert submit_sheet(api).status_code == 202
@@ -193,8 +193,8 @@ def test_one_sign_in_link_posted_twice_at_once_opens_one_session(api, monkeypatc
     from fastapi.testclient import TestClient
 
     from grader.main import app
-    from grader.models import WebSession
-    from grader.services import sign_in_links
+    from grader.core.models import WebSession
+    from grader.services.identity import sign_in_links
 
     imported = api.client.post("/v1/courses/l03/roster", json={"csv": ROSTER, "links": True}, headers=api.as_("prof"))
     assert imported.status_code == 200, imported.text
@@ -228,7 +228,7 @@ def test_one_sign_in_link_posted_twice_at_once_opens_one_session(api, monkeypatc
 # --- LTI launches -----------------------------------------------------------------------------------------------------
 
 def test_a_launch_after_its_logins_lifetime_is_refused(api, platform):
-    from grader.models import LtiLaunchState, utcnow
+    from grader.core.models import LtiLaunchState, utcnow
 
     fields = launch_form(api, platform, "lms-user-17")
     with _session() as session:  # the login's state outlived (the platform's id_token itself is still valid)

@@ -111,7 +111,7 @@ def test_only_assignments_of_the_students_own_course_that_still_withhold_count(a
 def test_events_carry_no_scores_graded_by_the_worker_at_once_or_resent(api, measured):
     from grader.core.db import new_session
     from grader.core.rubrics import grade_history
-    from grader.models import CaseRun
+    from grader.core.models import CaseRun
 
     aid = create(api, visibility="on_release").json()["id"]
     at_once = submit(api, aid).json()["id"]  # a checkpoint sheet, graded in the request

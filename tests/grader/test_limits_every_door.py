@@ -10,7 +10,7 @@ import html
 from fastapi.testclient import TestClient
 
 from grader.main import app
-from grader.settings import settings
+from grader.core.settings import settings
 from tests.factories import REFERENCE_YAML
 from tests.grader.test_sheet_form import form_fields, import_yaml
 from tests.grader.test_submit_confirm import confirm_fields

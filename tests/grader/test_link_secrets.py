@@ -12,7 +12,7 @@ import time
 
 import httpx
 
-from grader.services.sign_in_links import PATH
+from grader.services.identity.sign_in_links import PATH
 from tests.factories import ROOT
 
 COOKIE = "grader_session"
@@ -73,7 +73,7 @@ def test_the_access_log_never_holds_a_links_secret(api, tmp_path):
 def test_redacting_keeps_the_rest_of_the_access_record():
     import logging
 
-    from grader.api import logs
+    from grader.web import logs
 
     record = logging.LogRecord("uvicorn.access", logging.INFO, __file__, 1, '%s - "%s %s HTTP/%s" %d',
                                ("10.0.0.1:5000", "GET", f"{PATH}s3cr3t-_x/extra?next=/a", "1.1", 200), None)

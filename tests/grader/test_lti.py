@@ -208,7 +208,7 @@ class _Form(HTMLParser):
 def allow(monkeypatch, platform: Platform) -> None:
     """The operator's settings that let the tool fetch from this platform on loopback over plain http: its port
     only, so any other local server stays refused."""
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     monkeypatch.setattr(settings, "outbound_allow_http", True)
     monkeypatch.setattr(settings, "outbound_allowed_hosts", [f"127.0.0.1:{platform.server.server_port}"])
@@ -219,8 +219,8 @@ def platform(api, monkeypatch):
     lms = Platform()
     allow(monkeypatch, lms)
     with _session() as session:
-        from grader.models import Course
-        from grader.services import lti
+        from grader.core.models import Course
+        from grader.services.lti import launch as lti
 
         course = session.scalar(select(Course).where(Course.name == "l03"))
         lti.create_registration(session=session, course=course, issuer=lms.issuer, client_id=CLIENT_ID,
@@ -259,7 +259,7 @@ def post_launch(api, fields: dict, client=None, cookie: str | None = None):
 
 
 def counts() -> dict[str, int]:
-    from grader.models import LtiIdentity, User, WebSession
+    from grader.core.models import LtiIdentity, User, WebSession
 
     with _session() as session:
         return {table.__tablename__: session.scalar(select(func.count()).select_from(table))
@@ -279,7 +279,7 @@ def test_a_student_launches_and_lands_on_the_assignment_signed_in(api, platform)
     course_page = api.client.get("/courses/l03")
     assert course_page.status_code == 200 and "Lab 3 checkpoints" in course_page.text
     assert "Ada Lovelace" in page.text
-    from grader.models import LtiIdentity
+    from grader.core.models import LtiIdentity
 
     with _session() as session:
         (identity,) = session.scalars(select(LtiIdentity)).all()
@@ -294,7 +294,7 @@ def test_a_second_launch_finds_the_same_user_and_updates_name_and_role(api, plat
     page = post_launch(api, launch_form(api, platform, "lms-user-17"))
     assert page.status_code == 200 and landing(page) == "/courses/l03/dashboard"
     assert counts() == before | {"web_sessions": before["web_sessions"] + 1}
-    from grader.models import LtiIdentity
+    from grader.core.models import LtiIdentity
 
     with _session() as session:
         user = session.scalar(select(LtiIdentity)).user
@@ -446,7 +446,7 @@ def test_a_login_from_an_unregistered_platform_is_refused(api, platform):
 
 
 def test_the_tool_publishes_its_keys_and_keeps_a_rotated_one_a_while(api):
-    from grader.services import lti
+    from grader.services.lti import launch as lti
 
     first = api.client.get("/lti/jwks").json()["keys"]
     assert len(first) == 1 and {"kid", "n", "e"} <= first[0].keys() and "d" not in first[0]
@@ -503,7 +503,7 @@ def test_an_operator_registers_a_platform_and_rotates_the_keys_at_the_command_li
 
 def graded_attempt(assignment_id: int, sub: str, attempt: int, total: float, max_total: float = 10.0) -> int:
     """A graded attempt of the LMS user `sub`, stored as grading leaves one (scores only; sending reads no report)."""
-    from grader.models import Grade, LtiIdentity, Submission, utcnow
+    from grader.core.models import Grade, LtiIdentity, Submission, utcnow
 
     with _session() as session:
         user = session.scalar(select(LtiIdentity).where(LtiIdentity.sub == sub)).user
@@ -552,7 +552,7 @@ AGS_CLAIM = "https://purl.imsglobal.org/spec/lti-ags/claim/endpoint"
 
 
 def launched_scopes(platform: Platform) -> list[str]:
-    from grader.models import LtiContext
+    from grader.core.models import LtiContext
 
     with _session() as session:
         (context,) = session.scalars(select(LtiContext)).all()
@@ -631,7 +631,7 @@ def test_the_roster_syncs_from_the_lms_adding_updating_and_reporting_dropped_stu
     sync = lambda: api.client.post("/v1/courses/l03/lti/roster-sync", headers=api.as_("prof"))  # noqa: E731
     first = sync().json()
     assert (len(first["added"]), len(first["updated"]), first["dropped"]) == (1, 1, []), first
-    from grader.models import LtiIdentity, Submission
+    from grader.core.models import LtiIdentity, Submission
 
     with _session() as session:
         names = {i.sub: (i.user.full_name, i.user.role) for i in session.scalars(select(LtiIdentity))}
@@ -656,7 +656,7 @@ def test_a_roster_sync_without_an_lms_roster_is_a_conflict(api, platform):
 
 
 def launch_states() -> int:
-    from grader.models import LtiLaunchState
+    from grader.core.models import LtiLaunchState
 
     with _session() as session:
         return session.scalar(select(func.count()).select_from(LtiLaunchState))
@@ -668,7 +668,7 @@ def test_anonymous_logins_are_limited_per_address(api, platform, monkeypatch):
     from fastapi.testclient import TestClient
 
     from grader.main import app
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     monkeypatch.setattr(settings, "rate_limit_lti_logins", "3/minute")
     url = platform.login_url("lms-user-17", "link-1")
@@ -685,7 +685,7 @@ def test_anonymous_logins_are_limited_per_address(api, platform, monkeypatch):
 def test_expired_logins_are_deleted_a_day_after_they_expire(api, platform):
     from datetime import timedelta
 
-    from grader.models import LtiLaunchState, LtiRegistration, utcnow
+    from grader.core.models import LtiLaunchState, LtiRegistration, utcnow
 
     now = utcnow()
     with _session() as session:

@@ -1,4 +1,4 @@
-"""Scores sent to the LMS on their own (grader.services.lti_outbox): a grade stored marks its assignment in the same
+"""Scores sent to the LMS on their own (grader.services.lti.outbox): a grade stored marks its assignment in the same
 transaction, the reconciler's pass (grader.reconcile.find_and_requeue) sends it to lti1p3platform's gradebook over
 HTTP on loopback, a refused send backs off and shows on the instructor's LTI page, and a withheld score waits for the
 release. No test here calls a "send": the pass does."""
@@ -34,7 +34,7 @@ def grade(aid: int, attempt: int, total: float, max_total: float = 10.0) -> int:
     """A graded attempt of the LMS student, stored by grader.core.grading.store_grade (the one place grades are
     stored: the worker and a regrade call it), committed as the worker commits it."""
     from grader.core.grading import store_grade
-    from grader.models import LtiIdentity, Submission
+    from grader.core.models import LtiIdentity, Submission
 
     with _session() as session:
         user = session.scalar(select(LtiIdentity).where(LtiIdentity.sub == STUDENT)).user
@@ -57,7 +57,7 @@ def sweep(now=None) -> list:
 
 
 def outbox(aid: int):
-    from grader.models import LtiOutbox
+    from grader.core.models import LtiOutbox
 
     with _session() as session:
         return session.scalar(select(LtiOutbox).where(LtiOutbox.assignment_id == aid))
@@ -108,7 +108,7 @@ def test_a_second_mark_of_an_unchanged_score_posts_nothing(api, platform):
 
 
 def test_a_refused_send_backs_off_shows_on_the_page_and_the_retry_delivers(api, platform):
-    from grader.models import utcnow
+    from grader.core.models import utcnow
 
     aid = launched(api, platform)
     platform.refuse_scores = True  # the gradebook answers 503
@@ -171,7 +171,7 @@ def test_a_withheld_item_never_reaches_the_gradebook_before_release(api, platfor
 
 
 def test_a_score_shown_after_the_due_date_goes_on_the_first_pass_after_it(api, platform):
-    from grader.models import Assignment, utcnow
+    from grader.core.models import Assignment, utcnow
 
     aid = launched(api, platform, visibility="after_due")
     due = utcnow() + timedelta(seconds=3)
@@ -191,7 +191,7 @@ def test_a_course_without_a_gradebook_marks_nothing(api):
     aid = create(api).json()["id"]
     from grader.core.db import new_session
     from grader.core.grading import store_grade
-    from grader.models import Submission, User
+    from grader.core.models import Submission, User
 
     with new_session() as session:
         alice = session.scalar(select(User).where(User.name == "alice"))

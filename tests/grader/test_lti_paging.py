@@ -120,9 +120,9 @@ class PagingLms:
 def lms(api, monkeypatch):
     """The platform registered for l03, with one LMS course (as a launch would have left it: its services'
     URLs and the AGS scopes offered, result.readonly among them) and the student alice known as LMS user lms-alice."""
-    from grader.models import Course, LtiContext, LtiIdentity, User
-    from grader.services import lti
-    from grader.settings import settings
+    from grader.core.models import Course, LtiContext, LtiIdentity, User
+    from grader.services.lti import launch as lti
+    from grader.core.settings import settings
 
     platform = PagingLms(api.client.get("/lti/jwks").json())
     monkeypatch.setattr(settings, "outbound_allow_http", True)
@@ -150,7 +150,7 @@ def test_the_roster_follows_a_case_sensitive_next_link(api, lms):
     assert lms.refused == []
     synced = answer.json()
     assert (len(synced["added"]), len(synced["updated"])) == (2, 1)  # both pages: p1 and p2 added, alice renamed
-    from grader.models import LtiIdentity
+    from grader.core.models import LtiIdentity
 
     with _session() as session:
         subs = {i.sub: i.user.full_name for i in session.scalars(select(LtiIdentity))}
@@ -172,7 +172,7 @@ def test_the_line_items_follow_a_case_sensitive_next_link_to_the_tools_column(ap
 
 
 def test_a_page_past_the_size_cap_is_reported_with_the_url_and_status_only(api, lms, monkeypatch):
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     monkeypatch.setattr(settings, "outbound_max_bytes", 1_000)
     lms.roster = [member(f"lms-{n}", "N" * 50) for n in range(40)]  # the second page is over the cap
@@ -183,7 +183,7 @@ def test_a_page_past_the_size_cap_is_reported_with_the_url_and_status_only(api, 
 
 
 def test_a_roster_whose_next_links_never_end_is_stopped(api, lms, monkeypatch):
-    from grader.services import lti
+    from grader.services.lti import launch as lti
 
     monkeypatch.setattr(lti, "MAX_PAGES", 5)
     lms.endless = True

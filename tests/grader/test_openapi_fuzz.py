@@ -37,7 +37,7 @@ schema = _schema()
 @pytest.fixture
 def seeded(api, monkeypatch):
     """The `api` fixture's people plus one submission of alice's; the submission limit out of the way."""
-    from grader.settings import settings as grader_settings
+    from grader.core.settings import settings as grader_settings
 
     # The generator submits far more often than a student may; the limit itself is tested in test_hostile_input.
     monkeypatch.setattr(grader_settings, "rate_limit_submissions", "100000/minute")
@@ -83,8 +83,8 @@ def world(seeded, tmp_path):
     """`seeded` plus: alice's submission graded (a stored grade, one lab figure, one case run's evidence files), an
     assignment of the course with an extension of hers, and an audit entry; the ids every valid request names."""
     from grader.core.db import new_session
-    from grader.models import CaseEvidence, CaseRun, Grade, Submission
-    from grader.settings import settings as grader_settings
+    from grader.core.models import CaseEvidence, CaseRun, Grade, Submission
+    from grader.core.settings import settings as grader_settings
     from rubric.scoring import GradeReport
 
     api = seeded

@@ -72,7 +72,7 @@ def internal():
 @pytest.fixture
 def http_allowed(monkeypatch):
     """The operator allows plain http (as the tests on loopback need), nothing else: no allow-list."""
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     monkeypatch.setattr(settings, "outbound_allow_http", True)
     monkeypatch.setattr(settings, "outbound_allowed_hosts", [])
@@ -118,7 +118,7 @@ def test_a_launch_never_fetches_an_internal_key_set_url_stored_past_the_check(ap
     """The finding as the review ran it, with the registration's check bypassed (a row written to the database
     directly): an anonymous login and an unsigned launch make the tool fetch the key set, which must be refused at
     fetch time, and the page must not show what the internal server would have said."""
-    from grader.models import Course, LtiDeployment, LtiRegistration
+    from grader.core.models import Course, LtiDeployment, LtiRegistration
 
     with _session() as session:
         course = session.scalar(select(Course).where(Course.name == "l03"))
@@ -149,7 +149,7 @@ def test_a_launch_never_fetches_an_internal_key_set_url_stored_past_the_check(ap
 def test_token_and_service_urls_stored_past_the_check_are_refused_when_fetched(api, internal, http_allowed):
     """The registration's token URL and a launch's service URLs (gradebook, roster) naming the internal server, as
     rows written around the checks: sending scores and syncing the roster fetch nothing and show no body."""
-    from grader.models import Course, LtiContext, LtiIdentity, LtiRegistration, User
+    from grader.core.models import Course, LtiContext, LtiIdentity, LtiRegistration, User
     from tests.grader.test_assignments import create
     from tests.grader.test_lti import graded_attempt
 
@@ -322,7 +322,7 @@ def test_https_is_verified_against_the_urls_host_name_on_the_checked_socket(tmp_
     import ssl
 
     from grader.core import outbound
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     server = Internal()
     cert, key = _certificate(tmp_path, "lms.campus.example")

@@ -169,7 +169,7 @@ def test_a_run_of_an_overridden_submission_may_be_resent_and_grading_it_again_ke
     from grader.core.db import new_session
     from grader.core.grading import grade_and_store
     from grader.core.rubrics import course_rubric, current_grade
-    from grader.models import CaseRun, Submission
+    from grader.core.models import CaseRun, Submission
 
     _, sid = graded(api)
     with new_session() as session:  # one of its runs failed (as a run can, after the grade was stored)

@@ -43,14 +43,14 @@ class World:
 
 
 def _at(days: float) -> str:
-    from grader.models import utcnow
+    from grader.core.models import utcnow
 
     return (utcnow() + timedelta(days=days)).strftime("%Y-%m-%dT%H:%M")  # a datetime-local field, course zone UTC
 
 
 def make_world(api) -> World:
     from grader.core.db import new_session
-    from grader.models import CaseRun
+    from grader.core.models import CaseRun
     from tests.grader.test_tolerance_review import _draft_form
 
     aid = create(api).json()["id"]
@@ -79,7 +79,7 @@ def make_world(api) -> World:
 
 
 def _iso(days: float) -> str:
-    from grader.models import utcnow
+    from grader.core.models import utcnow
 
     return (utcnow() + timedelta(days=days)).replace(microsecond=0).isoformat() + "Z"
 
@@ -179,7 +179,7 @@ def test_every_state_changing_page_route_says_who_may_use_it():
 def snapshot(api) -> dict:
     """Every row of every table, and the tasks sent: what a refused request must leave as it was."""
     from grader.core.db import new_session
-    from grader.models import Base
+    from grader.core.models import Base
 
     with new_session() as session:
         rows = {table.name: sorted(map(repr, session.execute(select(table)).all()))

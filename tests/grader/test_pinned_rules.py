@@ -47,7 +47,7 @@ def submit(api, assignment_id: int, who: str = "alice"):
 def grade(submission_id: int, scores: dict[str, float]) -> None:
     """Store a grade for the submission as the worker would, with the given per-item scores (1 point each)."""
     from grader.core.db import new_session
-    from grader.models import Grade, Submission
+    from grader.core.models import Grade, Submission
     from rubric.scoring import GradeReport, ItemGrade
 
     items = [ItemGrade(id=i, question=f"question {i}", part="checkpoint", kind="conceptual", points=1, score=s,
@@ -75,7 +75,7 @@ def graded_submission(api, assignment_id: int, scores: dict[str, float] | None =
 
 def set_assignment(assignment_id: int, **values) -> None:
     from grader.core.db import new_session
-    from grader.models import Assignment
+    from grader.core.models import Assignment
 
     with new_session() as session:
         row = session.get(Assignment, assignment_id)
@@ -94,7 +94,7 @@ def shown(api, sid: int, who: str) -> dict[str, float | None]:
 
 def test_retry_after_counts_from_the_oldest_submission_that_fills_the_hour(api):
     from grader.core.db import new_session
-    from grader.models import Submission
+    from grader.core.models import Submission
 
     aid = create_assignment(api, max_per_hour=2)
     ids = [submit(api, aid).json()["id"] for _ in range(2)]

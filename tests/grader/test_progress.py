@@ -1,4 +1,4 @@
-"""A submission's progress (grader.services.progress, grader.pages.progress) on the in-process app: each waiting
+"""A submission's progress (grader.services.submissions.progress, grader.pages.submissions.progress) on the in-process app: each waiting
 run's place in its queue counted from the database in the order the senders' priorities serve it, the estimate from
 the medians of measured runs of the same case, the page and the JSON its script polls, and who may see them."""
 
@@ -10,8 +10,8 @@ from sqlalchemy import select
 
 from grader.core.db import new_session
 from grader.core.states import CaseRunState
-from grader.models import CaseRun, Submission, utcnow
-from grader.services import progress
+from grader.core.models import CaseRun, Submission, utcnow
+from grader.services.submissions import progress
 from tests.factories import reference_sheet
 
 
@@ -66,7 +66,7 @@ def _runs(submission_id: int) -> list[CaseRun]:
 
 
 def _user(session, name: str):
-    from grader.models import User
+    from grader.core.models import User
 
     return session.scalar(select(User).where(User.name == name))
 

@@ -15,8 +15,8 @@ def test_broker_down_at_submit_keeps_the_runs_and_the_reconciler_resends_them(ap
     from grader import dispatch
     from grader.cli.service import reconcile
     from grader.core.db import new_session
-    from grader.models import CaseRun, utcnow
-    from grader.settings import settings
+    from grader.core.models import CaseRun, utcnow
+    from grader.core.settings import settings
 
     def broker_down(*args):
         raise ConnectionError("broker unreachable")
@@ -74,7 +74,7 @@ class _Clock:
 def _loop(api, monkeypatch, answers: list, *, broker_url: str, work_s: float) -> list[float]:
     from grader import dispatch
     from grader.cli import service
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     clock = _Clock(work_s, len(answers))
 
@@ -109,7 +109,7 @@ def test_reconcile_asks_again_soon_while_the_broker_does_not_answer(api, monkeyp
 def test_a_lost_broker_resends_queued_runs_however_full_the_queue_and_pending_gradings(api):
     from grader.core.db import new_session
     from grader.core.lifecycle import HOST
-    from grader.models import CaseRun, Submission, utcnow
+    from grader.core.models import CaseRun, Submission, utcnow
     from grader.reconcile import find_and_requeue
 
     ids = [api.client.post("/v1/submissions", json={"sheet": reference_sheet()}, headers=api.as_("alice")).json()["id"]
@@ -138,7 +138,7 @@ def test_a_lost_broker_resends_queued_runs_however_full_the_queue_and_pending_gr
 def test_the_reconciler_reports_a_lost_broker_only_for_a_marker_it_had_left_and_at_once(api, monkeypatch):
     from grader import dispatch, reconcile
     from grader.cli import service
-    from grader.settings import settings
+    from grader.core.settings import settings
 
     broker = {"marker": False, "restarted": False}
     clock = _Clock(0, 20)

@@ -93,7 +93,7 @@ def test_committing_with_no_graded_submission_records_the_course_version(api):
     assert [r["id"] for r in history] == [body["id"]]
     from grader.core.db import new_session
     from grader.core.rubrics import course_version
-    from grader.models import Course
+    from grader.core.models import Course
 
     with new_session() as session:
         course = session.query(Course).filter_by(name="l03").one()

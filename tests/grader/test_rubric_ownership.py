@@ -29,7 +29,7 @@ def _course_rubric(course: str):
 
     from grader.core.db import new_session
     from grader.core.rubrics import course_rubric
-    from grader.models import Course
+    from grader.core.models import Course
 
     with new_session() as session:
         return course_rubric(session, session.scalar(select(Course.id).where(Course.name == course)), "L03")

@@ -11,11 +11,11 @@ from datetime import timedelta
 import pytest
 from sqlalchemy import func, select
 
-from grader.api.deps import MemberCourse, SessionDep
+from grader.web.deps import MemberCourse, SessionDep
 from grader.core.db import new_session
 from grader.pages.auth import SignedIn
-from grader.models import Assignment, Course, CourseChange, Extension, User, utcnow
-from grader.services import assignments, courses
+from grader.core.models import Assignment, Course, CourseChange, Extension, User, utcnow
+from grader.services.setup import assignments, courses
 from grader.services.errors import Forbidden, NotFound
 from tests.grader.test_assignments import create
 from tests.grader.test_setup_pages import BERLIN_FORM, page_post
@@ -102,7 +102,7 @@ def _loosened_api_course(course: MemberCourse) -> Course:
 def loosened(api):
     """The app with the instructor-only dependencies of the set-up pages and the course API replaced by ones that
     let any member of the course through (as one mistaken edit of a route would)."""
-    from grader.api import deps
+    from grader.web import deps
     from grader.main import app
     from grader.pages import auth
 

@@ -10,7 +10,7 @@ from sqlalchemy import select, update
 
 from grader.core.db import new_session
 from grader.core.security import hash_token
-from grader.models import ApiToken, Course, User, WebSession, utcnow
+from grader.core.models import ApiToken, Course, User, WebSession, utcnow
 
 COOKIE = "grader_session"
 

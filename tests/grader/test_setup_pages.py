@@ -13,7 +13,7 @@ import pytest
 from sqlalchemy import func, select
 
 from grader.core.db import new_session
-from grader.models import Assignment, CourseChange, Extension, User
+from grader.core.models import Assignment, CourseChange, Extension, User
 from tests.grader.test_assignments import ROSTER, at, create, submit
 
 # The forms below name days of December 2026 and January 2027: the clock stands before them on any calendar day.

@@ -1,4 +1,4 @@
-"""The prediction sheet as a form (grader.pages.sheet_form) on the in-process app: inputs generated for every answer
+"""The prediction sheet as a form (grader.pages.submissions.sheet_form) on the in-process app: inputs generated for every answer
 field, drafts on the server, YAML in and out, the API's own messages beside each field, the one-factor check."""
 
 from __future__ import annotations
@@ -224,7 +224,7 @@ def test_a_valid_form_submits_through_the_api_service_and_can_start_the_next_dra
     stored = api.client.get(f"/v1/submissions/{sid}", headers=api.as_("alice"))
     assert stored.status_code == 200, stored.text
     from grader.core.db import new_session
-    from grader.models import Submission
+    from grader.core.models import Submission
 
     with new_session() as session:  # the form sent the YAML's data, nothing lost or added on the way
         assert session.get(Submission, sid).sheet == yaml.safe_load(REFERENCE_YAML.read_text())

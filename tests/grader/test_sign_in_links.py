@@ -11,7 +11,7 @@ from sqlalchemy import func, select, update
 
 from grader.core.db import new_session
 from grader.core.security import hash_token
-from grader.models import SignInLink, User, WebSession, utcnow
+from grader.core.models import SignInLink, User, WebSession, utcnow
 from tests.grader.test_assignment_cli import run
 from tests.grader.test_assignments import ROSTER
 

@@ -12,7 +12,7 @@ def test_the_migration_creates_exactly_the_models(tmp_path):
     from alembic.migration import MigrationContext
 
     from grader.core.db import make_engine, migrate
-    from grader.models import Base
+    from grader.core.models import Base
 
     url = f"sqlite:///{tmp_path / 'm.db'}"
     migrate(url)
@@ -41,8 +41,8 @@ def migrated_with_a_submission(url: str, specs: list):
     from sqlalchemy.orm import Session
 
     from grader.core.db import make_engine, migrate
-    from grader.models import User
-    from grader.services import submissions
+    from grader.core.models import User
+    from grader.services.submissions import submit as submissions
     from tests.factories import create_people, reference_sheet
 
     migrate(url)
@@ -90,7 +90,7 @@ def test_migration_0009_makes_every_grade_stored_before_it_complete(tmp_path):
     from sqlalchemy import select, text
     from sqlalchemy.orm import Session
 
-    from grader.models import Grade
+    from grader.core.models import Grade
 
     url = f"sqlite:///{tmp_path / 'm.db'}"
     engine, submission_id = migrated_with_a_submission(url, specs=[])
@@ -169,7 +169,7 @@ def test_migration_0011_renames_an_assignments_items_to_part_keeping_it(tmp_path
 
 
 def test_production_refuses_embedded_and_placeholder_urls():
-    from grader.settings import Settings
+    from grader.core.settings import Settings
 
     with pytest.raises(ValueError, match="database_url"):
         Settings(environment="production", broker_url="redis://r:6379/0")

@@ -1,4 +1,4 @@
-"""The confirmation between the sheet form and a submission (grader.pages.sheet_form): it names the attempt, the
+"""The confirmation between the sheet form and a submission (grader.pages.submissions.sheet_form): it names the attempt, the
 lateness and the penalty by the assignment's own rules, submits only the draft it showed, and a submission the rules
 refuse names the rule beside the form and keeps the draft."""
 
@@ -8,7 +8,7 @@ import re
 from datetime import timedelta
 
 from grader.core.db import new_session
-from grader.models import Submission, utcnow
+from grader.core.models import Submission, utcnow
 from tests.grader.test_assignments import at, checkpoint_sheet, create
 from tests.grader.test_sheet_form import form_fields
 
@@ -159,7 +159,7 @@ def test_a_confirmation_outlived_by_the_hard_close_is_refused_at_submit_and_keep
     shown = press(api, aid, {**fields, "action": "submit"})
     assert "Submit attempt 1" in shown.text
     with new_session() as session:
-        from grader.models import Assignment
+        from grader.core.models import Assignment
 
         session.get(Assignment, aid).hard_close_at = utcnow() - timedelta(minutes=1)
         session.commit()

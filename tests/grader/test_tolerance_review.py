@@ -43,7 +43,7 @@ def _version_row(version: str = "2"):
     from sqlalchemy import select
 
     from grader.core.db import new_session
-    from grader.models import RubricVersion
+    from grader.core.models import RubricVersion
 
     with new_session() as session:
         row = session.scalar(select(RubricVersion).where(RubricVersion.lesson == "L03",
@@ -58,7 +58,7 @@ def precision_pair(api, measured) -> int:
     from sqlalchemy import select
 
     from grader.core.db import new_session
-    from grader.models import CaseRun, User
+    from grader.core.models import CaseRun, User
 
     response = api.client.post("/v1/submissions", json={"sheet": reference_sheet() | {"student": "alice"}},
                                headers=api.as_("alice"))
@@ -151,7 +151,7 @@ def _signoff_flow(api):
     from sqlalchemy import func, select
 
     from grader.core.db import new_session
-    from grader.models import RubricSignoff
+    from grader.core.models import RubricSignoff
 
     with new_session() as session:
         assert session.scalar(select(func.count()).select_from(RubricSignoff)) == 1

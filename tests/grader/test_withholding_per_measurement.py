@@ -124,7 +124,7 @@ def _item(id_, kind, backends, verdict="credit", **over) -> dict:
 def test_which_runs_decide_an_item_follows_its_kind_and_the_runs_its_rule_read():
     """The rule on a stored report: a measured item's runs decide it, a conceptual or config item's do not, a measured
     item naming no run read them all (the engine version of every run), and an unmeasured verdict decides none."""
-    from grader.services.visibility import shown_report, withheld_runs
+    from grader.services.submissions.visibility import shown_report, withheld_runs
 
     runs = ["N1", "N2", "friction-baseline", "sheet.extension"]
     report = {"items": [_item("A2", "measured", ["N1", "N2"]), _item("X2", "measured", ["N1", "sheet.extension"]),

@@ -14,7 +14,7 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from grader.core import clock
-from grader.models import CaseRun, Event, Grade
+from grader.core.models import CaseRun, Event, Grade
 from tests import services
 from tests.factories import ROOT
 

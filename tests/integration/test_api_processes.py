@@ -97,7 +97,7 @@ def test_a_report_not_complete_carries_no_etag_from_either_process(two_processes
 
 
 def test_several_api_processes_with_limits_counted_in_memory_are_refused():
-    from grader.settings import Settings
+    from grader.core.settings import Settings
 
     with pytest.raises(ValueError, match="api_workers: more than one API process needs rate_limit_storage_url"):
         Settings(api_workers=2)

@@ -52,7 +52,7 @@ def test_the_migration_creates_exactly_the_models_on_postgresql(database_url):
     from alembic.migration import MigrationContext
 
     from grader.core.db import make_engine, migrate
-    from grader.models import Base
+    from grader.core.models import Base
 
     migrate(database_url)
     engine = make_engine(database_url)

@@ -14,7 +14,7 @@ from sqlalchemy import select, text
 from sqlalchemy.exc import DatabaseError
 from sqlalchemy.orm import Session
 
-from grader.models import AuditEntry
+from grader.core.models import AuditEntry
 from tests.integration.helpers import SHOTS, images_decoded, signed_in, wait_until
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]

@@ -13,7 +13,7 @@ import pytest
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from grader.models import CaseRun, Course, Submission, utcnow
+from grader.core.models import CaseRun, Course, Submission, utcnow
 from tests import services
 from tests.factories import reference_sheet
 from tests.integration.helpers import (SHOTS, WAIT_LIMIT_S, case_runs, events, grades_of, images_decoded, signed_in,
@@ -95,7 +95,7 @@ def test_predictions_and_measurements_by_backend_equal_the_json_and_the_charts_l
 
 def _student(stack, name: str) -> tuple[int, str]:
     """A third student of the course (the shared graded class stays as the page tests expect), with a token."""
-    from grader.services import accounts
+    from grader.services.identity import accounts
 
     with Session(stack.engine) as session:
         course = session.scalar(select(Course).where(Course.name == COURSE))
@@ -108,10 +108,10 @@ def _student(stack, name: str) -> tuple[int, str]:
 def test_a_failed_and_a_stuck_run_are_resent_from_the_dashboard_and_graded(browser, stack, graded):
     """Carol's submission lost deliveries to dead workers: one case run used up its deliveries (the real worker
     fails it when its last message arrives), another is held by a worker that died (a dead lease, no message)."""
-    from grader.services import sheets, submissions
+    from grader.services.submissions import sheets, submit as submissions
     from grader.client import Client
-    from grader.models import User
-    from grader.settings import settings
+    from grader.core.models import User
+    from grader.core.settings import settings
 
     _, token = _student(stack, "carol")
     carol = Client(stack.url, token)

@@ -26,7 +26,7 @@ from sqlalchemy import func, select
 from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session
 
-from grader.models import CaseRun, Event, Grade, Submission, utcnow
+from grader.core.models import CaseRun, Event, Grade, Submission, utcnow
 from tests import services
 from tests.factories import create_people, reference_sheet
 from tests.integration.helpers import wait_until

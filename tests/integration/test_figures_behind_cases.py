@@ -7,7 +7,7 @@ import pytest
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from grader.models import Event
+from grader.core.models import Event
 from tests.factories import reference_sheet
 from tests.integration.helpers import WAIT_LIMIT_S, case_runs
 
@@ -24,9 +24,9 @@ def _events(stack, submission_id: int) -> list[Event]:
 def _instructor_of_another_course(stack, name: str):
     """An instructor (force_rerun is a staff power) of the stack's other course, so that the shared class the page
     tests read stays as they expect."""
-    from grader.services import accounts
+    from grader.services.identity import accounts
     from grader.client import Client
-    from grader.models import Course
+    from grader.core.models import Course
 
     with Session(stack.engine) as session:
         course = session.scalar(select(Course).where(Course.name == OTHER_COURSE))

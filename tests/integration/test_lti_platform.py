@@ -25,8 +25,8 @@ def tool(tmp_path_factory):
     from sqlalchemy.orm import Session
 
     from grader.core.db import make_engine, migrate
-    from grader.models import Course
-    from grader.services import lti
+    from grader.core.models import Course
+    from grader.services.lti import launch as lti
 
     data_dir = tmp_path_factory.mktemp("lti-tool")
     port = services.free_port()
@@ -59,7 +59,7 @@ def tool(tmp_path_factory):
 @contextmanager
 def _allowing(env: dict[str, str]):
     """This process's settings as `env` sets them for the tool's processes (registrations are saved here)."""
-    from grader.settings import Settings, settings
+    from grader.core.settings import Settings, settings
 
     parsed = Settings(**{k.lower(): v for k, v in env.items()})
     with pytest.MonkeyPatch.context() as patch:
@@ -102,7 +102,7 @@ def test_the_counted_score_reaches_the_gradebook_over_http(tool):
     from sqlalchemy import select
     from sqlalchemy.orm import Session
 
-    from grader.models import Grade, LtiIdentity, Submission, utcnow
+    from grader.core.models import Grade, LtiIdentity, Submission, utcnow
 
     with httpx.Client() as browser:
         assert _post(browser, tool, _form(browser, tool)).status_code == 200
@@ -142,8 +142,9 @@ def lms_class(stack):
 
     from sqlalchemy.orm import Session
 
-    from grader.models import LtiIdentity
-    from grader.services import accounts, lti
+    from grader.core.models import LtiIdentity
+    from grader.services.identity import accounts
+    from grader.services.lti import launch as lti
 
     platform = Platform(tool=stack.url)
     platform.people = {LMS_STUDENT: {"roles": [LEARNER], "name": "Lina Meitner", "email": "lina@example.edu"}}
@@ -179,7 +180,7 @@ def _outbox(stack, aid: int):
     from sqlalchemy import select
     from sqlalchemy.orm import Session
 
-    from grader.models import LtiOutbox
+    from grader.core.models import LtiOutbox
 
     with Session(stack.engine) as session:
         return session.scalar(select(LtiOutbox).where(LtiOutbox.assignment_id == aid))

@@ -12,7 +12,7 @@ from prometheus_client.parser import text_string_to_metric_families
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from grader.models import CaseRun, Grade
+from grader.core.models import CaseRun, Grade
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 

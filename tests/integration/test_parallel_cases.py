@@ -50,7 +50,7 @@ def _gauge(text: str, name: str, **labels: str) -> float | None:
 def seen(tmp_path_factory):
     from grader.client import Client
     from grader.core.db import make_engine, migrate
-    from grader.models import CaseRun
+    from grader.core.models import CaseRun
 
     redis = services.redis_client()
     url = services.SPARE_REDIS_URL  # the session's stack keeps REDIS_URL; this worker must not take its runs
@@ -124,7 +124,7 @@ def test_a_worker_takes_no_case_until_its_slots_are_warm_and_metrics_say_so(seen
 
 
 def test_one_submissions_runs_execute_at_once_on_two_slots_and_it_is_graded_once(seen):
-    from grader.models import CaseRun, Event, Grade
+    from grader.core.models import CaseRun, Event, Grade
 
     with Session(seen.engine) as session:
         runs = session.scalars(select(CaseRun).where(CaseRun.submission_id == seen.submission_id)).all()

@@ -12,7 +12,7 @@ from datetime import timedelta
 import pytest
 from sqlalchemy.orm import Session
 
-from grader.models import utcnow
+from grader.core.models import utcnow
 from rubric import load_rubric
 from tests import services
 from tests.integration.helpers import case_runs, events, grades_of, wait_until
@@ -51,8 +51,8 @@ def test_worker_killed_mid_case_requeues_and_grades_once(stack):
 
 def test_reconciler_resends_runs_whose_worker_vanished(stack):
     """Case runs left 'running' past their lease (a worker machine lost, its messages gone) are re-queued and finish."""
-    from grader.services import sheets, submissions
-    from grader.models import User
+    from grader.services.submissions import sheets, submit as submissions
+    from grader.core.models import User
 
     with Session(stack.engine) as session:
         alice = session.query(User).filter_by(name="alice").one()

@@ -11,7 +11,7 @@ import pytest
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from grader.models import CaseRun, Grade, Measurement
+from grader.core.models import CaseRun, Grade, Measurement
 from tests.factories import reference_sheet, rubric_v3
 from tests.integration.helpers import SHOTS, signed_in, submit_and_wait
 
@@ -24,7 +24,7 @@ TIGHT = 1e-6
 
 @pytest.fixture(scope="module")
 def regrade_class(stack):
-    from grader.services import accounts
+    from grader.services.identity import accounts
 
     with Session(stack.engine) as session:
         course = accounts.get_or_create_course(session=session, name=COURSE)

@@ -9,7 +9,7 @@ import pytest
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from grader.models import Grade
+from grader.core.models import Grade
 from tests.factories import reference_sheet
 from tests.integration.helpers import SHOTS, case_runs, charts_drawn, signed_in, submit_and_wait
 

@@ -12,7 +12,7 @@ import pytest
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from grader.models import Measurement
+from grader.core.models import Measurement
 from grader.core import content_key as reuse
 from rubric import case_metrics, cases_to_run, expected_arrays, load_rubric, parse_case, parse_sheet
 from rubric.metrics import parse_metrics

@@ -20,7 +20,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.client import Client
-from grader.models import Grade
+from grader.core.models import Grade
 from tests.factories import ROOT, reference_sheet
 from tests.integration.helpers import WAIT_LIMIT_S, at
 

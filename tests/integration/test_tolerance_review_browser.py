@@ -15,7 +15,7 @@ import pytest
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from grader.models import CaseRun, RubricVersion, User
+from grader.core.models import CaseRun, RubricVersion, User
 from tests.factories import reference_sheet
 from tests.grader.test_tolerance_review import precision_twin
 from tests.integration.helpers import submit_and_wait
@@ -31,7 +31,7 @@ WIDER = "0.002"  # proxy_resolution 0.5 mm -> 2 mm: the proxy changes N1->N2 and
 @pytest.fixture(scope="module")
 def review_class(stack):
     """Pia's reference sheet graded for real in a course of her own, with instructor Ivan and auditor Aude."""
-    from grader.services import accounts
+    from grader.services.identity import accounts
 
     with Session(stack.engine) as session:
         course = accounts.get_or_create_course(session=session, name=COURSE)

@@ -21,7 +21,7 @@ import pytest
 from sqlalchemy import make_url, select
 from sqlalchemy.orm import Session
 
-from grader.models import Grade
+from grader.core.models import Grade
 from tests import services
 from tests.factories import create_people, reference_sheet
 from tests.integration import hosts

@@ -33,7 +33,7 @@ def test_a_warm_process_stopped_for_memory_is_replaced_for_the_next_case(tmp_pat
 
 
 def test_the_setting_and_the_case_process_default_agree():
-    from grader.settings import Settings
+    from grader.core.settings import Settings
     from worker.case_process import DEFAULT_MEMORY_LIMIT_MB
 
     assert Settings.model_fields["case_memory_limit_mb"].default == DEFAULT_MEMORY_LIMIT_MB
@@ -41,9 +41,9 @@ def test_the_setting_and_the_case_process_default_agree():
 
 def test_the_worker_stores_the_reason_and_the_report_shows_it(api, monkeypatch):  # noqa: F811 - imported fixture
     from grader.core.db import new_session
-    from grader.models import CaseRun
+    from grader.core.models import CaseRun
     from grader.ops import failure_reason
-    from grader.settings import settings
+    from grader.core.settings import settings
     from worker.case_run import process_case_run
     from worker.slot import run_case_in_slot
 

@@ -12,11 +12,11 @@ from tests.factories import create_people, reference_sheet
 
 
 def test_a_starting_worker_resends_the_runs_of_dead_processes_on_its_host_ahead_of_the_queue(tmp_path, monkeypatch):
-    from grader.services import sheets, submissions
+    from grader.services.submissions import sheets, submit as submissions
     from grader.core import lifecycle
     from grader.core.db import make_engine, migrate
-    from grader.models import CaseRun, Event, User, utcnow
-    from grader.settings import settings
+    from grader.core.models import CaseRun, Event, User, utcnow
+    from grader.core.settings import settings
     from worker import tasks
 
     url = f"sqlite:///{tmp_path / 'grader.db'}"

@@ -1,4 +1,4 @@
-"""`--only bounded`: the worst sheet the caps admit (grader.services.sheets: every value the sheet may hold spent on
+"""`--only bounded`: the worst sheet the caps admit (grader.services.submissions.sheets: every value the sheet may hold spent on
 extra config keys the form shows as inputs, every explanation at its length limit) through the sheet form's check,
 save, export, import and submit and the API's POST, on the app in-process (SQLite, nothing sent to a worker): each
 must take a bounded time however the input is shaped (issue 31, item 3; target 0.2 s each)."""
@@ -21,7 +21,7 @@ def worst_sheet(reference: dict) -> dict:
     """The reference sheet with each explanation at its 4000 characters and the rest of the values budget spent on
     extra keys of the form's two configs, each a mapping of leaves (each leaf one form input and one more path for
     every per-key step), with every mapping at most MAX_KEYS wide."""
-    from grader.services.sheets import MAX_KEYS, MAX_VALUES, size_problems
+    from grader.services.submissions.sheets import MAX_KEYS, MAX_VALUES, size_problems
 
     sheet = yaml.safe_load(yaml.safe_dump(reference))
     for answer in sheet["answers"].values():
@@ -105,8 +105,8 @@ def bench_bounded(out_dir: Path, repeats: int, *, log) -> dict:
 
     from grader import dispatch
     from grader.core import db
-    from grader.services import accounts, quotas
-    from grader.settings import settings
+    from grader.services.identity import accounts, quotas
+    from grader.core.settings import settings
     from tools.bench.submission import reference_sheet
 
     out_dir.mkdir(parents=True, exist_ok=True)

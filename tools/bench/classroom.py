@@ -13,8 +13,8 @@ from datetime import UTC, datetime
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from grader.models import Grade, Submission
-from grader.settings import settings
+from grader.core.models import Grade, Submission
+from grader.core.settings import settings
 from worker.warm_gate import OPENED
 
 from tools.bench.cases import BenchFailure

@@ -1,6 +1,6 @@
 """A submission's figures, two ways, on the same stored runs (issue 24 item 2): (a) drawn on the server as the lab's
 18 PNGs (worker.figures.lab_figures, what `complete_grade` did), (b) served as the compact JSON series the report's
-browser charts draw (grader.services.figure_series). For each: server CPU seconds and bytes per submission. And the
+browser charts draw (grader.services.reports.series). For each: server CPU seconds and bytes per submission. And the
 report's completion: POST to the lab check stored, against the cases' own time (target: within 1.5x)."""
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ import psutil
 from sqlalchemy.orm import Session
 
 from grader.core.lifecycle import stored_result
-from grader.models import Submission
-from grader.services.figure_series import submission_series
+from grader.core.models import Submission
+from grader.services.reports.series import submission_series
 from tools.bench.stats import median
 from tools.bench.submission import grading_seconds, reference_sheet, time_submission
 

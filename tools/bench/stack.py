@@ -16,7 +16,7 @@ from sqlalchemy.orm import Session
 
 from grader.client import Client
 from grader.core.db import make_engine, migrate
-from grader.services import accounts
+from grader.services.identity import accounts
 
 from tools.bench.processes import ROOT, free_port, start_api, start_worker, stop
 

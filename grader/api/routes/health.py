@@ -5,7 +5,7 @@ from fastapi.responses import Response
 from prometheus_client import CONTENT_TYPE_LATEST, CollectorRegistry, generate_latest
 from sqlalchemy import text
 
-from grader.api.deps import SessionDep
+from grader.web.deps import SessionDep
 from grader.core.db import new_session
 from grader.ops import StatusCollector
 from grader.schemas import Health

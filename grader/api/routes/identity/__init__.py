@@ -1,0 +1,1 @@
+"""The API's identity routes (grader.services.identity): revoking a student's tokens."""

@@ -1,0 +1,147 @@
+"""A caller's submissions and one submission's report, with what the report page downloads (results.json, the
+charts' series, evidence files). Signing in is grader.pages.identity.sign_in; the exports grader.pages.reports.exports.
+
+Same access rules as the API (a student sees their own submissions, instructors and auditors their course's);
+anything a caller may not read is a 404 page that reveals nothing. Every asset is served by this app.
+"""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Request
+from fastapi.responses import HTMLResponse, JSONResponse, Response
+
+from grader.web import etag
+from grader.web.deps import SessionDep
+from grader.core.rubrics import grade_history
+from grader.core.states import SubmissionState
+from grader.core.models import Submission
+from grader.pages.auth import SignedIn, SignedInFetch
+from grader.pages.errors import not_found
+from grader.pages.templates import TEMPLATES, request_locale
+from grader.pages.views import report_view
+from grader.services.identity import access
+from grader.services.setup import assignments
+from grader.services.reports import exports, series as figure_series
+from grader.services.submissions import submit as submissions
+from grader.services.errors import NotFound
+from grader.services.submissions.visibility import attempt_standing, grade_view
+
+PART_TITLES = {
+    "A": "Part A: contact and time step", "B": "Part B: friction and stopping distance",
+    "checkpoint": "Concept checkpoints", "hands_on": "Hands-on exercise", "extension": "Extension",
+}
+router = APIRouter(include_in_schema=False)
+
+
+
+def _readable(session, user, submission_id: int) -> Submission | None:
+    # Pages answer an id outside the keys' range like any unknown id: the 404 page (the API says 422).
+    try:
+        return access.readable_submission(session=session, user=user, submission_id=submission_id)
+    except NotFound:
+        return None
+
+
+@router.get("/submissions", response_class=HTMLResponse)
+def submissions_page(request: Request, session: SessionDep, user: SignedIn):
+    rows = submissions.visible_submissions(session=session, user=user)
+    grades = {s.id: v for s in rows if (v := grade_view(session=session, submission=s, user=user, report=False)).shown}
+    return TEMPLATES.TemplateResponse(request, "submissions/submissions.html", {
+        "user": user, "submissions": rows[::-1], "grades": grades, "attempts": _attempts(session, rows, user)})
+
+
+def _attempts(session, rows: list[Submission], user) -> dict[int, dict]:
+    """Per submission to an assignment, what the caller may see of it: attempt, lateness, penalty, whether it
+    counts (grader.api.views.submission_public decides what a withheld grade leaves out)."""
+    out = {}
+    for s in rows:
+        if s.assignment is not None:
+            out[s.id] = {"assignment": s.assignment, "attempt": s.attempt,
+                         "late": assignments.late_text(s.late_seconds)} | attempt_standing(session, s, user)
+    return out
+
+
+@router.get("/submissions/{submission_id}", response_class=HTMLResponse)
+def report_page(request: Request, submission_id: int, session: SessionDep, user: SignedIn):
+    submission = _readable(session, user, submission_id)
+    if submission is None:
+        return not_found(request, user, f"submission {submission_id}")
+    # the report (the largest column) loads only if the page is built: a 304 never reads it
+    grade = grade_view(session=session, submission=submission, user=user, report=False)
+    hidden = bool(grade.hidden)
+    attempt = _attempts(session, [submission], user).get(submission.id)
+
+    def build():
+        view = report_view(submission, grade if grade.shown else None, grade.withheld_runs)
+        return TEMPLATES.TemplateResponse(request, "submissions/report.html", {
+            "user": user, "view": view, "part_titles": PART_TITLES, "attempt": attempt,
+            "history": [] if hidden else grade_history(session, submission.id),
+            "charts": _charts(submission, grade.withheld_runs),
+            "series_url": f"/submissions/{submission.id}/series.json"})
+
+    # A complete report answers 304 to a browser that holds it, and is rendered once per validator (grader.web.etag).
+    tag = etag.etag_of("report-page", etag.report_state(session, submission, user, grade), request_locale(request),
+                       {k: v for k, v in (attempt or {}).items() if k != "assignment"}, str(request.url)) \
+        if etag.complete(submission, grade) else None
+    return etag.conditional(request, tag, build, cache_key="report-page")
+
+
+def _charts(submission: Submission, withheld: dict[str, str]) -> list:
+    """The report's charts once the submission is graded (as the PNG figures were, drawn after grading), without the
+    runs whose measurements decide an item withheld from the reader (GradeView.withheld_runs)."""
+    if submission.status != SubmissionState.GRADED:
+        return []
+    return figure_series.report_charts(submission, withheld)
+
+
+@router.get("/submissions/{submission_id}/results.json")
+def results_download(request: Request, submission_id: int, session: SessionDep, user: SignedIn):
+    """The stored grade report (every item with prediction, expected, evidence, tolerances and verdict) as JSON;
+    for a student, the items their assignment withholds yet are masked."""
+    submission = _readable(session, user, submission_id)
+    grade = grade_view(session=session, submission=submission, user=user) if submission else None
+    if grade is None or not grade.shown:
+        return not_found(request, user, f"grade of submission {submission_id}")
+    tag = etag.etag_of("results", etag.report_state(session, submission, user, grade)) \
+        if etag.complete(submission, grade) else None
+    return etag.conditional(request, tag, lambda: JSONResponse(grade.report, headers={
+        "Content-Disposition": f'attachment; filename="submission-{submission.id}-results.json"'}),
+        cache_key="results")
+
+
+@router.get("/submissions/{submission_id}/series.json")
+def series_json(request: Request, submission_id: int, session: SessionDep, user: SignedInFetch):
+    """The measured series the report's charts draw, read from the database (any API host serves them): to whoever
+    may read the submission, like its evidence downloads; they hold no item's score or verdict."""
+    submission = _readable(session, user, submission_id)
+    if submission is None:
+        return not_found(request, user, f"series of submission {submission_id}")
+    # The runs deciding an item withheld from this reader carry no series (GradeView.withheld_runs): what is withheld
+    # (the items, why, and the grade they are withheld from) is part of the validator, like the report's.
+    grade = grade_view(session=session, submission=submission, user=user, report=False)
+    # Built once per state of its runs (and reader) while the submission is finished: a report view asks again.
+    tag = etag.etag_of("series", [user.id, submission.id, figure_series.SHAPE, *[
+        [r.id, r.status, r.result_status, r.reused_from_id, str(r.finished_at)] for r in submission.case_runs]],
+        sorted(grade.hidden.items()), grade.stored.id if grade.stored is not None else None) \
+        if submission.status in (SubmissionState.GRADED, SubmissionState.FAILED) else None
+    return etag.conditional(request, tag, lambda: JSONResponse(figure_series.submission_series(
+        submission=submission, withheld=grade.withheld_runs), headers={"Cache-Control": "private, no-cache"}),
+        cache_key="series")
+
+
+@router.get("/submissions/{submission_id}/case-runs/{name}/{filename}")
+def evidence_file(request: Request, submission_id: int, name: str, filename: str, session: SessionDep,
+                  user: SignedIn):
+    submission = _readable(session, user, submission_id)
+    if submission is None:
+        return not_found(request, user, f"file {filename} of case run {name}")
+    withheld = grade_view(session=session, submission=submission, user=user, report=False).withheld_runs
+    try:
+        body, media_type = exports.evidence_file(submission=submission, name=name, filename=filename,
+                                                 withheld=withheld)
+    except NotFound:
+        return not_found(request, user, f"file {filename} of case run {name}")
+    return Response(body, media_type=media_type, headers={
+        "Content-Disposition": f'attachment; filename="{submission.id}-{name}-{filename}"'})
+
+

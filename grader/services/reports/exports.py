@@ -1,0 +1,128 @@
+"""Grade exports for instructors: a course's grades as CSV, an assignment's counted grades as CSV, one submission as
+Gradescope results.json, and the evidence files of a case run (from the database). The API and the pages serve the
+same bytes.
+
+Scores are the current grade's, so an instructor's override (grader.services.submissions.overrides) is in them; the course CSV
+adds an `overrides` column and Gradescope each overridden test's output the comment, beside the measured verdict."""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Mapping
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from grader.core.lifecycle import evidence_bytes, evidence_of
+from grader.core.rubrics import current_grade
+from grader.core.models import Assignment, CaseRun, Course, Grade, Submission
+from grader.services.setup import assignments
+from grader.services.errors import Conflict, NotFound
+from grader.services.submissions.visibility import visibility_of
+from rubric.exports import csv_text, grades_csv, gradescope_results
+from rubric.scoring import GradeReport
+
+# A case run's evidence files (grader.core.lifecycle.EVIDENCE_FILES) with their media types; nothing else is served.
+EVIDENCE = {"arrays.npz": "application/octet-stream", "provenance.json": "application/json",
+            "metrics.json": "application/json",
+            "spec.json": "application/json", "stdout.txt": "text/plain", "stderr.txt": "text/plain"}
+COUNTED_COLUMNS = ("student", "counted_score", "raw_score", "max_score", "penalty", "late_seconds", "attempt",
+                   "submission_id", "submitted_at_utc")
+
+
+def _report(grade: Grade):
+    return GradeReport.model_validate(grade.report)
+
+
+def course_grades_csv(*, session: Session, course: Course, latest: bool = False) -> tuple[str, str]:
+    """(file name, CSV) of the course's current grades with each row's submission id and time (UTC): every graded
+    submission in submission order, or with `latest` each student's latest graded attempt."""
+
+    graded = session.execute(select(Submission, Grade).join(Grade, Grade.submission_id == Submission.id)
+                             .where(Submission.course_id == course.id, Grade.superseded_at.is_(None))
+                             .order_by(Submission.id)).all()
+    if latest:
+        graded = sorted({s.student_id: (s, g) for s, g in graded}.values(), key=lambda sg: sg[0].student.name)
+    text = grades_csv([(s.student.name, _report(g)) for s, g in graded],
+                      submissions=[(s.id, f"{s.created_at.isoformat()}+00:00") for s, _ in graded])
+    return f"{course.name}-{'latest' if latest else 'all'}-grades.csv", _with_overrides(text, [g for _, g in graded])
+
+
+def _overridden(grade: Grade) -> list[dict]:
+    return [i for i in grade.report.get("items", []) if "override" in i]
+
+
+def override_note(item: dict) -> str:
+    """One overridden item in words: its score, the comment, who, and what was measured."""
+    o = item["override"]
+    return (f"{item['id']}: {o['score']:g} of {item['points']:g} set by {o['by']}: {o['comment']} "
+            f"(measured: {item['verdict'].replace('_', ' ')}, {item['measured_score']:g})")
+
+
+def _with_overrides(text: str, grades: list[Grade]) -> str:
+    """The rubric's CSV with a last column `overrides` (each overridden item in words, "; " between), and an overridden
+    item's cell holding its score even where the measurement alone was inconclusive (left empty there)."""
+    rows = list(csv.reader(io.StringIO(text)))
+    header = rows[0] + ["overrides"]
+    for row, grade in zip(rows[1:], grades, strict=True):
+        items = _overridden(grade)
+        for item in items:
+            if item["id"] in header:
+                row[header.index(item["id"])] = f"{item['score']:g}"
+        row.append("; ".join(override_note(i) for i in items))
+    return csv_text([header, *rows[1:]])
+
+
+def counted_grades_csv(*, session: Session, assignment: Assignment) -> tuple[str, str]:
+    """(file name, CSV) of the assignment's counted grades: student, counted score, raw score, penalty, attempt,
+    submission and when it was submitted (UTC)."""
+    rows: list[list] = [list(COUNTED_COLUMNS)]
+    for c in assignments.counted_grades(session=session, assignment=assignment):
+        r = assignments.counted_public(c)
+        rows.append([r.student, f"{r.counted_score:g}", f"{r.raw_score:g}", f"{r.max_score:g}", f"{r.penalty:g}",
+                     r.late_seconds, r.attempt, r.submission_id, r.submitted_at.isoformat()])
+    return f"{assignment.course.name}-assignment-{assignment.id}-grades.csv", csv_text(rows)
+
+
+def gradescope(*, session: Session, submission: Submission) -> dict:
+    """Gradescope results.json of one graded submission; each item's visibility is its assignment's for that item
+    (immediate: visible, after_due: after_due_date, on_release: after_published). Conflict while not graded."""
+
+    grade = current_grade(session, submission.id)
+    if grade is None:
+        raise Conflict(f"submission {submission.id} is {submission.status}, not graded")
+    report = _report(grade)
+    shown = ({i.id: assignments.GRADESCOPE_VISIBILITY[visibility_of(submission.assignment, i.id)]
+              for i in report.items} if submission.assignment is not None else {})
+    results = gradescope_results(report, grade.execution_s, shown)
+    overridden = {i["id"]: i for i in _overridden(grade)}
+    for test in results["tests"]:
+        item = overridden.get(test["name"].split(":", 1)[0])
+        if item is not None:
+            test["output"] = f"Score set by an instructor. {override_note(item)}\n{test['output']}"
+    return results
+
+
+def evidence_names(run: CaseRun) -> list[str]:
+    """The evidence files a case run has in the database (its own, or its reused measurement's), in EVIDENCE order."""
+    evidence = evidence_of(run)
+    return [name for name in EVIDENCE if name in evidence.sizes] if evidence is not None else []
+
+
+def evidence_file(*, submission: Submission, name: str, filename: str,
+                  withheld: Mapping[str, str] | None = None) -> tuple[bytes, str]:
+    """(bytes, media type) of one evidence file of the submission's case run `name`, read from the database (the
+    worker's folder may be gone); NotFound otherwise. Conflict for a run in `withheld` ({run name: why}, the reader's
+    GradeView.withheld_runs): its measurements decide an item withheld from the reader, and every file of it (the
+    arrays, metrics, provenance, captured output) would tell them."""
+    run: CaseRun | None = next((r for r in submission.case_runs if r.name == name), None)
+    if run is None or filename not in EVIDENCE:
+        raise NotFound(f"no file {filename!r} for case run {name!r}")
+    if withheld and name in withheld:
+        raise Conflict(f"the measurements of case run {name!r} are withheld: it {withheld[name]}")
+    evidence = evidence_of(run)
+    body = evidence_bytes(evidence, filename) if evidence is not None else None
+    if body is None:
+        raise NotFound(f"{filename} was not stored for case run {name!r}")
+    return body, EVIDENCE[filename]

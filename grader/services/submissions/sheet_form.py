@@ -1,0 +1,462 @@
+"""The prediction sheet as a form: its inputs generated from the sheet's typed model (rubric.sheet) and the lesson's
+rubric, never written per question; form values to the sheet the API takes and back; the same validation as a
+submission (grader.services.submissions.sheets); the configs' field-by-field difference from the lesson's baseline.
+
+A form input is named by its path in the sheet (`answers.C1.substep_dt.value`), so every server message, which names
+that path, lands beside its input.
+"""
+
+from __future__ import annotations
+
+import math
+import types
+import typing
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import yaml
+from pydantic import BaseModel, ValidationError
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+import rubric
+from grader.core import content_key
+from grader.core.lifecycle import stored_result
+from grader.core.states import AssignmentParts
+from grader.core.models import CaseRun, Measurement
+from grader.services.submissions import sheets
+from grader.services.errors import Invalid, field_errors
+from rubric import BASELINE_CASES, describe_errors, one_factor_findings
+from rubric.rubrics import Rubric
+from rubric.scoring import LESSON_RUNS
+from rubric.sheet import Answers, Configs, PredictionSheet, Quantity
+
+LESSON = typing.get_args(PredictionSheet.model_fields["lesson"].annotation)[0]
+# The configs a student edits in the form (the rest travel in the YAML only): each starts from its rule's baseline.
+FORM_CONFIGS = ("table_exercise", "extension")
+# Config fields that are no physics a student chooses: the case kind, and staff-only or evidence switches.
+HIDDEN_CONFIG_FIELDS = ("kind", "backend", "render")
+YAML_MAX_DEPTH = 32
+
+
+@dataclass(frozen=True)
+class Input:
+    """One answer field: `name` is its sheet path; `widget` says how it is asked."""
+
+    name: str
+    label: str
+    widget: Literal["radio", "checkbox", "number", "integer", "text", "textarea", "quantity", "stop"]
+    choices: tuple[str, ...] = ()
+    units: tuple[str, ...] = ()
+    required: bool = True
+    default: Any = None
+
+
+@dataclass(frozen=True)
+class ItemForm:
+    id: str
+    question: str
+    part: str
+    inputs: tuple[Input, ...]
+
+
+def _choices(annotation) -> tuple[str, ...] | None:
+    """A Literal's (or bool's) values as form strings; None for any other type."""
+    if annotation is bool:
+        return ("true", "false")
+    if typing.get_origin(annotation) is Literal:
+        return tuple(str(v) for v in typing.get_args(annotation))
+    return None
+
+
+def _union(annotation) -> tuple | None:
+    return typing.get_args(annotation) if typing.get_origin(annotation) in (typing.Union, types.UnionType) else None
+
+
+def answer_inputs(model: type[BaseModel], prefix: str) -> list[Input]:
+    """One Input per answer field of `model`, walked through its nested models. A field type this does not know is a
+    TypeError: a new kind of answer fails the tests until the form can ask it."""
+    out = []
+    fields = sorted(model.model_fields.items(), key=lambda pair: pair[0] == "explanation")  # the answer, then why
+    for name, info in fields:
+        path, annotation = f"{prefix}.{name}", info.annotation
+        label = " ".join(path.split(".")[2:]).replace("_", " ")  # within its item: "baseline low", not "low"
+        extra = {} if info.is_required() else {"required": False, "default": info.get_default()}
+        arms = _union(annotation)
+        if name == "explanation":
+            out.append(Input(path, "explanation (optional, never scored)", "textarea", **extra))
+        elif (choices := _choices(annotation)) is not None:
+            out.append(Input(path, label, "radio", choices, **extra))
+        elif typing.get_origin(annotation) is list and (choices := _choices(typing.get_args(annotation)[0])):
+            out.append(Input(path, label, "checkbox", choices, **extra))
+        elif annotation is float:
+            out.append(Input(path, label, "number", **extra))
+        elif annotation is int:
+            out.append(Input(path, label, "integer", **extra))
+        elif annotation is str:
+            out.append(Input(path, label, "text", **extra))
+        elif isinstance(annotation, type) and issubclass(annotation, Quantity):
+            units = _choices(annotation.model_fields["unit"].annotation)
+            out.append(Input(path, label, "quantity", units=units, **extra))
+        elif arms and len(arms) == 2 and any(isinstance(a, type) and issubclass(a, Quantity) for a in arms):
+            quantity = next(a for a in arms if isinstance(a, type) and issubclass(a, Quantity))
+            (other,) = _choices(next(a for a in arms if a is not quantity))
+            units = _choices(quantity.model_fields["unit"].annotation)
+            out.append(Input(path, label, "stop", (other,), units, **extra))
+        elif isinstance(annotation, type) and issubclass(annotation, BaseModel):
+            out.extend(answer_inputs(annotation, path))
+        else:
+            raise TypeError(f"{path}: the sheet form has no input for {annotation!r}")
+    return out
+
+
+def item_forms(book: Rubric, item_ids: list[str]) -> list[ItemForm]:
+    """The form of each of the assignment's items: its question from the rubric, its inputs from the answer model."""
+    return [ItemForm(i, book.item(i).question, book.item(i).part,
+                     tuple(answer_inputs(Answers.model_fields[i].annotation, f"answers.{i}"))) for i in item_ids]
+
+
+# --- configs ----------------------------------------------------------------------------------------------------------
+
+def config_baseline(book: Rubric, role: str):
+    """The lesson case a config role's form starts from: its one-factor rule's baseline."""
+    return BASELINE_CASES[book.configs[role].baseline]
+
+
+def _dump(spec) -> dict:
+    return spec.model_dump(mode="json", exclude_computed_fields=True)
+
+
+def flatten(value: Any, prefix: str) -> dict[str, Any]:
+    """Nested dicts and lists as dotted paths (`table.pos.2`, `lanes.0.friction`) to their leaves."""
+    if isinstance(value, dict):
+        return {k: v for key, item in value.items() for k, v in flatten(item, f"{prefix}.{key}").items()}
+    if isinstance(value, list):
+        return {k: v for i, item in enumerate(value) for k, v in flatten(item, f"{prefix}.{i}").items()}
+    return {prefix: value}
+
+
+def _merge(base: Any, over: Any) -> Any:
+    if isinstance(base, dict) and isinstance(over, dict):
+        return {**base, **{k: _merge(base.get(k), v) for k, v in over.items()}}
+    return over
+
+
+def config_values(book: Rubric, role: str, sheet: dict) -> dict[str, Any]:
+    """A config's fields as the form shows them: the draft's own over its baseline (named after the role), by path."""
+    base = _dump(config_baseline(book, role)) | {"name": role}
+    own = sheet.get("configs", {}).get(role) if isinstance(sheet.get("configs"), dict) else None
+    merged = _merge(base, own) if isinstance(own, dict) else base
+    return flatten({k: v for k, v in merged.items() if k not in HIDDEN_CONFIG_FIELDS}, f"configs.{role}")
+
+
+def config_inputs(book: Rubric, role: str, sheet: dict) -> list[Input]:
+    """One input per field of the config, in the form `configs.ROLE.table.friction`: the baseline case's fields, and
+    any more the draft has (a third lane from a YAML), each asked as its value's type."""
+    widgets = {bool: "radio", int: "integer", float: "number"}
+    defaults = flatten(_dump(config_baseline(book, role)), f"configs.{role}")
+    return [Input(name, name.removeprefix(f"configs.{role}."), widgets.get(type(value), "text"),
+                  ("true", "false") if isinstance(value, bool) else (), default=defaults.get(name))
+            for name, value in config_values(book, role, sheet).items()]
+
+
+# --- form values <-> sheet --------------------------------------------------------------------------------------------
+
+def _number(text: str, integer: bool) -> Any:
+    """The number typed, or the text itself when it is none: the sheet's own validation then names the field."""
+    text = text.strip()
+    try:
+        value = int(text) if integer else float(text)
+    except ValueError:
+        return text
+    return value if math.isfinite(value) else text
+
+
+def _get(data: Any, path: str) -> Any:
+    for key in path.split("."):
+        if isinstance(data, dict):
+            data = data.get(key)
+        elif isinstance(data, list) and key.isdigit() and int(key) < len(data):
+            data = data[int(key)]
+        else:
+            return None
+    return data
+
+
+def _put(data: dict, path: str, value: Any) -> None:
+    keys = path.split(".")
+    for key in keys[:-1]:
+        if not isinstance(data.get(key), dict):  # never a 500: a path through a value (the caps refuse such keys)
+            data[key] = {}
+        data = data[key]
+    data[keys[-1]] = value
+
+
+def _listify(value: Any) -> Any:
+    """Dicts keyed 0..n-1 (from `lanes.0.friction` paths) back into lists."""
+    if isinstance(value, dict):
+        value = {k: _listify(v) for k, v in value.items()}
+        if value and all(k.isdigit() for k in value) and sorted(map(int, value)) == list(range(len(value))):
+            return [value[str(i)] for i in range(len(value))]
+    return value
+
+
+def _answer(form, field: Input) -> tuple[bool, Any]:
+    """(given, value) of one answer input from the posted form (`form.get`, `form.getlist`)."""
+    def get(suffix: str = "") -> str:
+        return (form.get(field.name + suffix) or "").strip()
+
+    if field.widget == "checkbox":
+        return True, form.getlist(field.name)
+    if field.widget == "radio":
+        value = get()
+        if field.choices == ("true", "false"):
+            return bool(value), {"true": True, "false": False}.get(value, value)
+        return bool(value), value
+    if field.widget in ("number", "integer"):
+        return bool(get()), _number(get(), field.widget == "integer")
+    if field.widget in ("text", "textarea"):
+        return bool(get()), get()
+    kind = get(".kind") if field.widget == "stop" else "value"
+    if kind in field.choices:
+        return True, kind
+    quantity = {"value": _number(get(".value"), False), "unit": get(".unit")}
+    return bool(get(".value")), quantity
+
+
+def sheet_from_form(form, *, items: list[ItemForm], book: Rubric | None, previous: dict) -> dict:
+    """The sheet the form holds, in the API's shape. An optional field is written when it differs from its default or
+    the draft already had it, so a sheet imported from YAML comes back out as it went in."""
+    sheet: dict[str, Any] = {"lesson": LESSON, "student": (form.get("student") or "").strip()}
+    for item in items:
+        for field in item.inputs:
+            given, value = _answer(form, field)
+            if field.widget == "checkbox" and not field.required and value == field.default \
+                    and _get(previous, field.name) is None:
+                continue
+            if field.widget == "checkbox" and isinstance(before := _get(previous, field.name), list):
+                # a list's order is the draft's (the form posts in the choices' order): its YAML comes back as it was
+                value = [v for v in before if v in value] + [v for v in value if v not in before]
+            if given:
+                _put(sheet, field.name, value)
+        sheet.setdefault("answers", {}).setdefault(item.id, {})
+    if book is not None:
+        sheet["configs"] = _configs_from_form(form, book, previous)
+    return sheet
+
+
+def _configs_from_form(form, book: Rubric, previous: dict) -> dict:
+    before = previous.get("configs") if isinstance(previous.get("configs"), dict) else {}
+    configs = {role: spec for role, spec in before.items() if role not in FORM_CONFIGS}  # YAML-only roles travel on
+    for role in FORM_CONFIGS:
+        baseline = _dump(config_baseline(book, role))
+        posted: dict[str, Any] = {}
+        for field in config_inputs(book, role, previous):
+            text = (form.get(field.name) or "").strip()
+            value = ({"true": True, "false": False}.get(text, text) if field.widget == "radio"
+                     else _number(text, field.widget == "integer") if field.widget in ("number", "integer") else text)
+            _put(posted, field.name.removeprefix(f"configs.{role}."), value)
+        posted = _listify(posted)
+        own = before.get(role) if isinstance(before.get(role), dict) else {}
+        config = {"kind": baseline["kind"], "name": posted.pop("name", role)}
+        # A top-level field goes whole (a table with its size and position, not its friction alone, which would
+        # take Table's defaults for the rest): when it differs from the baseline, or the draft already had it.
+        config |= {key: value for key, value in posted.items() if value != baseline.get(key) or key in own}
+        config |= {key: own[key] for key in HIDDEN_CONFIG_FIELDS if key in own and key != "kind"}
+        configs[role] = config
+    return configs
+
+
+def form_state(sheet: dict, items: list[ItemForm], book: Rubric | None) -> dict[str, Any]:
+    """What each input shows for a sheet (a draft): form strings by input name (lists for checkboxes)."""
+    values: dict[str, Any] = {"student": sheet.get("student") or ""}
+    for item in items:
+        for field in item.inputs:
+            values |= _shown(field, _get(sheet, field.name))
+    if book is not None:
+        for role in FORM_CONFIGS:
+            values |= {k: _text(v) for k, v in config_values(book, role, sheet).items()}
+    return values
+
+
+def _text(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def _shown(field: Input, value: Any) -> dict[str, Any]:
+    if field.widget == "checkbox":
+        return {field.name: [str(v) for v in value] if isinstance(value, list) else []}
+    if field.widget in ("quantity", "stop"):
+        if isinstance(value, str):
+            return {f"{field.name}.kind": value}
+        value = value if isinstance(value, dict) else {}
+        return {f"{field.name}.kind": "value" if value else "", f"{field.name}.value": _text(value.get("value")),
+                f"{field.name}.unit": _text(value.get("unit"))}
+    return {field.name: _text(value)}
+
+
+# --- checking ---------------------------------------------------------------------------------------------------------
+
+def problems(sheet: dict, part: str) -> list[dict[str, str]]:
+    """The submission's own rules (grader.services.submissions.sheets.parse_sheet) on the sheet: [{field: 'sheet.…', rule}], as
+    the API answers them; empty when it would be taken."""
+    try:
+        sheets.parse_sheet(sheet, part)
+    except ValidationError as exc:
+        return field_errors(describe_errors(exc), prefix="sheet")
+    return []
+
+
+def by_input(errors: list[dict[str, str]], names: list[str]) -> tuple[dict[str, list[str]], list[dict[str, str]]]:
+    """Each error beside the input it names (the longest input name its field starts with, dot by dot); the rest
+    unplaced. Looked up in a set, path prefix by path prefix: linear in the errors, whatever the number of inputs."""
+    known = set(names)
+    placed: dict[str, list[str]] = {}
+    rest = []
+    for error in errors:
+        owner = _owner(error["field"].removeprefix("sheet."), known)
+        if owner is None:
+            rest.append(error)
+        else:
+            placed.setdefault(owner, []).append(error["rule"])
+    return placed, rest
+
+
+def _owner(path: str, names: set[str]) -> str | None:
+    """The longest of `names` that is `path` or a dotted prefix of it."""
+    while path not in names:
+        cut = path.rfind(".")
+        if cut < 0:
+            return None
+        path = path[:cut]
+    return path
+
+
+@dataclass
+class ConfigCheck:
+    """One config against its baseline: every changed field, those the rule forbids, and the items it would void."""
+
+    role: str
+    baseline: str
+    may_change: list[str]
+    changes: list = dataclasses.field(default_factory=list)
+    violations: list = dataclasses.field(default_factory=list)
+    verdict: str = ""
+    voids: list[str] = dataclasses.field(default_factory=list)
+
+
+def config_checks(*, session: Session, sheet: dict, part: str, book: Rubric
+                  ) -> tuple[list[ConfigCheck], list[dict[str, str]]]:
+    """The one-factor verdict the grader will apply (rubric.one_factor_findings) on the sheet's configs, whatever
+    the answers hold yet, with the items each broken config would void where that can be told; and the configs' own
+    errors."""
+    try:
+        configs = Configs.model_validate(sheet.get("configs") or {})
+    except ValidationError as exc:
+        return [], field_errors(describe_errors(exc), prefix="sheet.configs")
+    probe = PredictionSheet.model_construct(lesson=LESSON, student="", answers=None, configs=configs)
+    findings = one_factor_findings(probe, book)
+    voids = _voided(session, sheet, part, book) if any(not f.ok for f in findings.values()) else {}
+    return [ConfigCheck(role=role, baseline=f.baseline, may_change=f.may_change, changes=f.changes,
+                        violations=f.violations, verdict=f.describe(), voids=voids.get(f.describe(), []))
+            for role, f in findings.items()], []
+
+
+def _voided(session: Session, sheet: dict, part: str, book: Rubric) -> dict[str, list[str]]:
+    """Item ids by the finding that voids them: the sheet graded as the grader would, on the lesson's cases as stored.
+    A config fault voids the items whose scoring rules read its run, which only running the rules tells; empty
+    while the sheet is invalid or a lesson case was never measured (such a rule would stop there first)."""
+    try:
+        parsed = sheets.parse_sheet(sheet, part)
+    except ValidationError:
+        return {}
+    results = {}
+    for name in LESSON_RUNS:
+        spec = BASELINE_CASES[name]
+        inputs = content_key.key_inputs(spec.model_dump(mode="json", exclude_computed_fields=True),
+                                        backend=spec.backend, precision=spec.precision)
+        found = session.scalar(select(Measurement).where(Measurement.content_key == content_key.content_key(inputs)))
+        run = session.get(CaseRun, found.case_run_id) if found is not None else None
+        if run is None:
+            return {}
+        try:
+            results[name] = stored_result(run)
+        except LookupError:
+            return {}
+    voided: dict[str, list[str]] = {}
+    for item in rubric.grade_sheet(parsed, results, book).items:
+        if item.verdict == "one_factor_violation":  # the rule stopped at the broken config, its finding as measured
+            voided.setdefault(item.measured, []).append(item.id)
+    return voided
+
+
+# --- YAML -------------------------------------------------------------------------------------------------------------
+
+# libyaml's C parser and emitter where PyYAML was built with it (the pure-Python ones took 0.4 s for the largest sheet
+# the caps admit); the same safe types either way.
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+
+
+def _refuse_aliases_and_depth(text: str) -> str | None:
+    """Why the YAML's events may not be loaded, or None: no aliases (a few aliased lines can stand for gigabytes once
+    stored as JSON) and no nesting past YAML_MAX_DEPTH (the loader composes nested nodes recursively). One pass over
+    the parser's events, which builds nothing."""
+    depth = 0
+    for event in yaml.parse(text, Loader=_LOADER):
+        if isinstance(event, yaml.AliasEvent):
+            return "aliases (*name) are not accepted"
+        if isinstance(event, yaml.SequenceStartEvent | yaml.MappingStartEvent):
+            depth += 1
+            if depth > YAML_MAX_DEPTH + 1:
+                return f"nested more than {YAML_MAX_DEPTH} levels deep"
+        elif isinstance(event, yaml.SequenceEndEvent | yaml.MappingEndEvent):
+            depth -= 1
+    return None
+
+
+def _plain(value: Any, depth: int = 0) -> str | None:
+    """Why the loaded YAML is not plain sheet data (too deep, a non-finite number, a non-text key), or None."""
+    if depth > YAML_MAX_DEPTH:
+        return f"nested more than {YAML_MAX_DEPTH} levels deep"
+    if isinstance(value, float) and not math.isfinite(value):
+        return "numbers must be finite (no .nan or .inf)"
+    if isinstance(value, dict):
+        if not all(isinstance(k, str) for k in value):
+            return "every key must be text"
+        return next((why for v in value.values() if (why := _plain(v, depth + 1))), None)
+    if isinstance(value, list):
+        return next((why for v in value if (why := _plain(v, depth + 1))), None)
+    if value is None or isinstance(value, str | int | float | bool):
+        return None
+    return f"{type(value).__name__} values are not sheet data"
+
+
+def sheet_from_yaml(text: str) -> dict:
+    """A sheet from the YAML the API takes (`grader submit` reads the same); Invalid naming the file and the rule."""
+    try:
+        if (why := _refuse_aliases_and_depth(text)) is not None:
+            raise Invalid("invalid YAML", [{"field": "file", "rule": why}])
+        data = yaml.load(text, Loader=_LOADER)  # noqa: S506 - a safe loader, and its events were checked above
+    except (yaml.YAMLError, RecursionError) as exc:
+        raise Invalid("invalid YAML", [{"field": "file", "rule": f"not readable YAML: {exc}"}]) from None
+    if not isinstance(data, dict):
+        raise Invalid("invalid YAML", [{"field": "file", "rule": "must hold one mapping: lesson, student, answers, "
+                                                                  "configs"}])
+    if (why := _plain(data)) is not None:
+        raise Invalid("invalid YAML", [{"field": "file", "rule": why}])
+    sheets.check_size(data, detail="invalid YAML")
+    return data
+
+
+def sheet_yaml(sheet: dict) -> str:
+    return yaml.dump(sheet, Dumper=_DUMPER, sort_keys=False, allow_unicode=True)
+
+
+def has_configs(part: str) -> bool:
+    return part != AssignmentParts.CHECKPOINTS

@@ -1,0 +1,271 @@
+"""What a user may see of a grade: the one rule, used by the API, the pages and every export.
+
+Staff (instructors and auditors of the course) see everything. A student sees an item's score and feedback at once
+(immediate), from the due date that applies to them (after_due: their extension's where granted) or once the
+assignment is released (on_release). A submission outside any assignment (a free one) withholds whatever an
+assignment of its course for the lesson still withholds from that student, open or not yet open: the same sheet sent
+without `assignment_id` must not tell what the assignment keeps back. A withheld item keeps its question, points and
+the student's own prediction; its score, verdict, evidence and feedback are not shown, the totals count the shown
+items only, and the lab check waits until nothing is withheld.
+
+An instructor's override (grader.services.submissions.overrides) is part of the stored grade's item (`override`, with the
+measured score and verdict beside it), so it is shown exactly when its item is: a withheld item is masked down to its
+question, points and prediction, and keeps neither the override's score nor its comment.
+
+Withholding is per measurement, not only per item: the case runs whose measurements decide a withheld item are
+withheld with it on every surface a student reads (`withheld_runs`): other items' evidence that reads them (with A2
+withheld, X2's "penetration_proxy N1 ... -> extension ..." would answer A2), the report's charts and their series,
+the runs' provenance, metrics and evidence downloads, and the lab check (left out while anything is withheld). Which
+runs decide an item comes from the grade itself, as the rubric's scoring rules recorded it: the runs each item's rule
+read (`backends`), for the items the rubric says are decided by measurement (kind `measured` or `computed`; a
+`conceptual` or `config` item is decided by no run). A measured item that names no run read them all (the engine
+version of every run's provenance), and before a grade exists every run is withheld while any item is.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from datetime import datetime
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from grader.core.rubrics import current_grade
+from grader.core.states import CountedAttempt, Visibility
+from grader.core.timezones import iso
+from grader.core.models import Assignment, Grade, Submission, User, utcnow
+from grader.services.setup.assignments import counted_for, dates_for, item_ids, penalty_fraction
+from grader.services.identity import access
+
+
+def visibility_of(assignment: Assignment, item_id: str) -> str:
+    """The item's own visibility where the assignment sets one, else the assignment's."""
+    return (assignment.item_visibility or {}).get(item_id, assignment.visibility)
+
+
+def withheld_items(*, session: Session, submission: Submission, user: User, now: datetime) -> dict[str, str]:
+    """{item id: why `user` may not see its score and feedback yet}; empty for staff of the submission's course.
+    A free submission's items are withheld while any assignment of the course for its lesson withholds them."""
+    if access.is_staff(user) and user.course_id == submission.course_id:
+        return {}
+    if submission.assignment is not None:
+        return _withheld_by(session, submission.assignment, submission.student, now)
+    ids = set(item_ids(submission.lesson, submission.part))
+    hidden: dict[str, str] = {}
+    for assignment in session.scalars(select(Assignment).where(
+            Assignment.course_id == submission.course_id, Assignment.lesson == submission.lesson)
+            .order_by(Assignment.id)):
+        for i, reason in _withheld_by(session, assignment, submission.student, now).items():
+            if i in ids:
+                hidden.setdefault(i, reason)
+    return hidden
+
+
+def _withheld_by(session: Session, assignment: Assignment, student: User, now: datetime) -> dict[str, str]:
+    """{item id: why} of the items of `assignment` it withholds from `student` at `now`."""
+    why: dict[str, str | None] = {Visibility.IMMEDIATE: None}
+    ids = item_ids(assignment.lesson, assignment.part)
+    kinds = {visibility_of(assignment, i) for i in ids}
+    if Visibility.AFTER_DUE in kinds:
+        due = dates_for(session=session, assignment=assignment, student=student).due_at
+        why[Visibility.AFTER_DUE] = None if now >= due else (
+            f"shown after the due date, {iso(due, assignment.course.timezone)}")
+    if Visibility.ON_RELEASE in kinds:
+        why[Visibility.ON_RELEASE] = None if assignment.released_at is not None else (
+            f"shown once assignment {assignment.id} is released by an instructor")
+    hidden = {i: why[visibility_of(assignment, i)] for i in ids}
+    return {i: reason for i, reason in hidden.items() if reason}
+
+
+# Items the rubric decides by measurement (rubric.rubrics.ItemKind); a conceptual item's runs only illustrate it and
+# a config item is decided from the submitted configs.
+MEASURED_KINDS = ("measured", "computed")
+NOT_DECIDED = ("not_measured", "one_factor_violation")  # no measurement decided these verdicts
+
+
+def deciding_runs(item: dict, runs: list[str]) -> list[str]:
+    """The case runs whose measurements decide a stored report item: the runs its scoring rule read (`backends`, by
+    the names the grade gives them) where the rubric decides it by measurement; every one of `runs` (the submission's)
+    where such an item names none (its rule read every run, as the engine version does); none for a conceptual or
+    config item, or a verdict no measurement decided."""
+    if item.get("kind") not in MEASURED_KINDS or item.get("verdict") in NOT_DECIDED:
+        return []
+    return list(item.get("backends") or {}) or list(runs)
+
+
+def withheld_runs(report: dict | None, hidden: dict[str, str], runs: list[str]) -> dict[str, str]:
+    """{case run name: why its measurements are withheld}: the runs deciding any withheld item of `report` (the
+    stored grade's), each with the items it decides and when they are shown. Without a report (not graded yet) every
+    run is withheld while any item is: nothing yet says which run decides which item."""
+    if not hidden:
+        return {}
+    if report is None:
+        why = "; ".join(sorted(set(hidden.values())))
+        return {r: f"decides withheld items ({', '.join(sorted(hidden))}), {why}" for r in runs}
+    decides: dict[str, list[str]] = {}
+    for item in report.get("items", []):
+        if item["id"] in hidden:
+            for run in deciding_runs(item, runs):
+                decides.setdefault(run, []).append(item["id"])
+    return {run: f"decides {', '.join(ids)}, " + "; ".join(sorted({hidden[i] for i in ids}))
+            for run, ids in sorted(decides.items())}
+
+
+def _evidence_withheld(item: dict, runs: dict[str, str]) -> dict:
+    """A shown item whose rule read a withheld run: its score and verdict stay, the measured values (its evidence,
+    what was measured and, for a measured item, the expected answer derived from them) wait with the run."""
+    names = [r for r in item.get("backends") or {} if r in runs]
+    masked = {"measured": "", "evidence": None, "evidence_withheld": names,
+              "feedback": (f"Verdict: {item['verdict'].replace('_', ' ')}. Evidence withheld: it reads the measurements "
+                           f"of {', '.join(names)}: " + "; ".join(f"{n} {runs[n]}" for n in names) + ".")}
+    if item.get("kind") in MEASURED_KINDS:
+        masked["expected"] = ""
+    return item | masked
+
+
+def shown_report(report: dict, hidden: dict[str, str], runs: list[str] | None = None) -> dict:
+    """The stored report as a student may see it: each withheld item keeps its question, points and the student's
+    own prediction, but its score is None and its feedback says when it will be shown; the total counts the shown
+    items only and `pending` says which points are still to come. The lab check (its conditions' evidence is
+    measured against the same tolerances) is left out until nothing is withheld. Nothing is regraded on release."""
+    if not hidden:
+        return report
+    withheld = withheld_runs(report, hidden, runs if runs is not None else _read_runs(report))
+    items, total, shown_max, pending_points = [], 0.0, 0.0, 0.0
+    for item in report.get("items", []):
+        if item["id"] not in hidden and set(item.get("backends") or {}) & set(withheld):
+            item = _evidence_withheld(item, withheld)
+        if item["id"] in hidden:
+            pending_points += item["points"]  # its worth, not max_score: that would tell an inconclusive one apart
+            items.append({k: item[k] for k in ("id", "part", "kind", "question", "prediction", "points")}
+                         | {"score": None, "max_score": item["points"], "verdict": "pending", "expected": "",
+                            "measured": "", "evidence": None, "tolerances": {}, "backends": {},
+                            "feedback": f"withheld: {hidden[item['id']]}"})
+        else:
+            total, shown_max = total + item["score"], shown_max + item["max_score"]
+            items.append(item)
+    names = [i["id"] for i in items if i["id"] in hidden]
+    max_total = shown_max + pending_points
+    note = (f"{pending_points:g} of {max_total:g} points pending ({', '.join(names)}): "
+            + "; ".join(sorted(set(hidden.values()))))
+    # which item the grade's last override changed would tell a withheld one was overridden: left out while any is
+    kept = {k: v for k, v in report.items() if k != "made_by_override"}
+    return {**kept, "items": items, "total": round(total, 6), "max_total": max_total, "pending": note,
+            "check": None, "withheld_measurements": withheld}
+
+
+def _read_runs(report: dict) -> list[str]:
+    """Every run the report's items name (a report read without its submission's runs at hand)."""
+    return sorted({r for item in report.get("items", []) for r in item.get("backends") or {}})
+
+
+@dataclass(frozen=True)
+class GradeView:
+    """The current grade of a submission as one user may see it now.
+
+    `stored` is the grade row (None before grading); read the scores through this view, never through `stored`,
+    unless `hidden` is empty. `nothing_shown` says why no score at all may be shown (every item withheld)."""
+
+    submission: Submission
+    stored: Grade | None
+    hidden: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def item_count(self) -> int:
+        return len(item_ids(self.submission.lesson, self.submission.part))
+
+    @property
+    def nothing_shown(self) -> str | None:
+        if not self.hidden or len(self.hidden) < self.item_count:
+            return None
+        return "scores and feedback are " + " and ".join(sorted(set(self.hidden.values())))
+
+    @property
+    def some_withheld(self) -> str | None:
+        """Why some item is withheld (the grade history's totals would tell it), or None."""
+        return ("some items' scores and feedback are " + " and ".join(sorted(set(self.hidden.values())))
+                if self.hidden else None)
+
+    @property
+    def shown(self) -> bool:
+        """Whether there is a grade and any of it may be shown."""
+        return self.stored is not None and self.nothing_shown is None
+
+    @cached_property  # masked once per view: total, max_total and pending all read it
+    def report(self) -> dict | None:
+        """The report as this user may see it (the stored one where nothing is withheld)."""
+        if not self.shown:
+            return None
+        return shown_report(self.stored.report, self.hidden, self.run_names) if self.hidden else self.stored.report
+
+    @property
+    def run_names(self) -> list[str]:
+        return [r.name for r in self.submission.case_runs]
+
+    @cached_property
+    def withheld_runs(self) -> dict[str, str]:
+        """{case run name: why} of the runs whose measurements this user may not see yet (see `withheld_runs`):
+        their series, metrics, provenance and evidence files. A function of `hidden`, the stored grade and the
+        submission's runs, which the report's validator (grader.web.etag.report_state) already covers."""
+        if not self.hidden:
+            return {}
+        return withheld_runs(self.stored.report if self.stored is not None else None, self.hidden, self.run_names)
+
+    @property
+    def total(self) -> float | None:
+        if not self.shown:
+            return None
+        return self.report["total"] if self.hidden else self.stored.total
+
+    @property
+    def max_total(self) -> float | None:
+        if not self.shown:
+            return None
+        return self.report["max_total"] if self.hidden else self.stored.max_total
+
+    @property
+    def pending(self) -> str | None:
+        return self.report.get("pending") if self.shown and self.hidden else None
+
+    # The stored grade's provenance, never withheld: which rubric, and whether its figures are drawn.
+    @property
+    def rubric_lesson(self) -> str | None:
+        return self.stored.rubric_lesson if self.stored is not None else None
+
+    @property
+    def rubric_version(self) -> str | None:
+        return self.stored.rubric_version if self.stored is not None else None
+
+    @property
+    def completed_at(self) -> datetime | None:
+        return self.stored.completed_at if self.stored is not None else None
+
+
+def grade_view(*, session: Session, submission: Submission, user: User, now: datetime | None = None,
+               report: bool = True) -> GradeView:
+    """The current grade of `submission` as `user` may see it at `now` (default: now).
+
+    `report=False` defers the grade's report (the largest JSON) until a withheld item needs it masked."""
+    hidden = withheld_items(session=session, submission=submission, user=user, now=now or utcnow())
+    return GradeView(submission=submission, stored=current_grade(session, submission.id, report=report),
+                     hidden=hidden)
+
+
+def attempt_standing(session: Session, submission: Submission, user: User, view: GradeView | None = None) -> dict:
+    """What `user` may see of an assignment attempt's standing: the late penalty (it follows from the lateness alone:
+    never withheld), the raw and counted score (only with the whole grade shown) and whether it is the attempt that
+    counts (withheld under "best" while any item is: it would tell a hidden score)."""
+    out: dict = {"penalty": None, "raw_score": None, "counted_score": None, "counts": None}
+    assignment = submission.assignment
+    if assignment is None:
+        return out
+    view = view or grade_view(session=session, submission=submission, user=user, report=False)
+    out["penalty"] = penalty_fraction(assignment, submission.late_seconds or 0)
+    if view.stored is not None:
+        mine, counting_id = counted_for(session=session, submission=submission)
+        if mine is not None and not view.hidden:
+            out |= {"raw_score": mine.raw, "counted_score": mine.counted}
+        if not view.hidden or assignment.counted_attempt == CountedAttempt.LATEST:
+            out["counts"] = counting_id == submission.id
+    return out
