@@ -258,7 +258,6 @@ class PredictionSheet(SheetModel):
 # other item: predictions, hands-on and extension, which need the student's configs) or the whole sheet.
 CHECKPOINT_IDS = ("C1", "C2", "C3", "C4", "C5", "C6", "C7", "C8")
 EXERCISE_IDS = tuple(name for name in Answers.model_fields if name not in CHECKPOINT_IDS)
-SHEET_ITEMS = ("checkpoints", "exercises", "sheet")
 
 
 class CheckpointAnswers(SheetModel):

@@ -1,6 +1,6 @@
 """Real services for integration tests: a fresh PostgreSQL database, a Redis db, a Celery worker, the API on loopback.
 
-The process helpers live in tools.bench.processes (the benchmark starts the same stack) and are re-exported here.
+The process helpers live in tools.harness (the benchmark starts the same stack from there) and are re-exported here.
 Outside CI a missing Redis/PostgreSQL skips the test; with CI=true it fails, so CI can never go green on skips.
 """
 
@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 
 from tests.factories import ROOT
-from tools.bench.processes import STARTUP_LIMIT_S, children, free_port, start_api, start_worker, stop, wait_for
-from tools.bench.stack import ServiceUnavailable
-from tools.bench.stack import postgres_database as _postgres_database
+from tools.harness.processes import STARTUP_LIMIT_S, children, free_port, start_api, start_worker, stop, wait_for
+from tools.harness.stack import ServiceUnavailable
+from tools.harness.stack import postgres_database as _postgres_database
 
 __all__ = ["PG_ADMIN_URL", "REDIS_URL", "ROOT", "SPARE_REDIS_URL", "STARTUP_LIMIT_S", "children", "free_port",
            "postgres_database", "private_kernel_cache", "redis_client", "start_api", "start_worker", "stop",
@@ -33,7 +33,7 @@ def _worker_index() -> int:
 
 # Two Redis databases per test process, so that processes running side by side (pytest-xdist) never flush or read
 # each other's broker. TEST_REDIS_URL names gw0's first one (default 11, the suite's number before xdist: gw0 has 11
-# and 12, gw1 9 and 10, gw2 7 and 8, gw3 5 and 6; 13-15 stay for the benchmark, tools.bench.stack uses 14). A second
+# and 12, gw1 9 and 10, gw2 7 and 8, gw3 5 and 6; 13-15 stay for the benchmark, tools.harness.stack uses 14). A second
 # test run on the same machine takes other numbers: TEST_REDIS_URL=redis://127.0.0.1:6379/4 uses 4, 5 and 2, 3.
 _BASE_URL = os.environ.get("TEST_REDIS_URL", "redis://127.0.0.1:6379/11")
 REDIS_DB = int(_BASE_URL.rsplit("/", 1)[1]) - 2 * _worker_index()

@@ -99,7 +99,7 @@ def worker(queues: tuple[str, ...], loglevel: str) -> None:
 @click.option("--every", type=float, default=0.0, help="Repeat every N seconds, pass start to pass start (0: once).")
 def reconcile(every: float) -> None:
     """Re-send case runs left queued or running past their lease, and stuck gradings."""
-    # lazy: SQLAlchemy stays off `grader --help`; and looked up per call (tests/grader/test_reconcile.py patches them)
+    # lazy: SQLAlchemy stays off `grader --help`; and looked up per call (tests/grader/core/test_reconcile.py patches them)
     from grader.core.db import new_session
     from grader.dispatch import broker_kept_marker, held_tasks, resend
     from grader.reconcile import UNKNOWN_RETRY_S, find_and_requeue

@@ -11,12 +11,9 @@ from typing import Any
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from grader.core.states import Backend, CaseRunState, ExecutionMode, Precision, values
+from grader.core.states import CaseRunState
 from grader.core.models import CaseRun, Event, User
 
-BACKENDS = tuple(values(Backend))
-PRECISIONS = tuple(values(Precision))
-MODES = tuple(values(ExecutionMode))
 # The case process's wording for a run that did not run on what it asked for (worker.case_process).
 PROVENANCE_MARKERS = ("provenance error", "provenance.actual_backend", "provenance.requested_backend",
                       "provenance.torch_hip", "provenance violation")

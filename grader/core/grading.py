@@ -16,7 +16,7 @@ import rubric
 from grader.core.lifecycle import stored_result, touch
 from grader.core.lti_outbox import scores_changed
 from grader.core.overrides import current_overrides, overridden_report
-from grader.core.rubrics import current_grade
+from grader.core.grades import current_grade
 from grader.core.states import SubmissionState
 from grader.core.models import Grade, Regrade, Submission, utcnow
 

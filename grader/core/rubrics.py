@@ -1,34 +1,21 @@
-"""Rubric versions as rows, and which grade and which version count: shared by the API and the worker.
+"""Rubric versions as rows, and which version a course grades under: shared by the API and the worker.
 
 Every version the service knows is a `RubricVersion` row holding its whole content: the files shipped in
 rubric/lessons are recorded as "shipped" (no publisher, no course, read by every course), and an instructor publishes
 new ones for their own course through the API (`publish`, under rubric.governance's rules), which no other course
 sees and nobody changes after. A course grades new submissions under the version its latest committed
-regrade chose, else under the newest shipped version. A submission's current grade is the one not superseded.
+regrade chose, else under the newest shipped version.
 """
 
 from __future__ import annotations
 
 from sqlalchemy import select
-from sqlalchemy.orm import Session, defer
+from sqlalchemy.orm import Session
 
 from rubric.governance import RubricGovernanceError, publish_version, rubric_changes
 from rubric.rubrics import load_rubric, parse_rubric, rubric_versions, version_key
 
 from grader.core.models import Grade, Regrade, RubricVersion, User
-
-
-def current_grade(session: Session, submission_id: int, *, report: bool = True) -> Grade | None:
-    """The submission's grade that counts (the newest not superseded by a regrade), or None. `report=False` leaves
-    its report (the largest JSON stored) to be loaded only if read: decoding it was a third of an API read."""
-    query = select(Grade).where(Grade.submission_id == submission_id, Grade.superseded_at.is_(None))
-    return session.scalar(query if report else query.options(defer(Grade.report)))
-
-
-def grade_history(session: Session, submission_id: int) -> list[Grade]:
-    """Every grade a submission ever had, oldest first; the last one is the current one."""
-    return list(session.scalars(select(Grade).where(Grade.submission_id == submission_id).order_by(Grade.id)
-                                .options(defer(Grade.report))))  # totals and dates: the reports load only if read
 
 
 # Stored rubric versions parsed and checked against their hash once per process, by that hash: a stored version's

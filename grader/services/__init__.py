@@ -1,18 +1,15 @@
 """The service layer: domain operations that take a database session and return typed results or raise
-grader.services.errors. The API (grader.api) and the pages (grader.pages) both call these; nothing here imports
-FastAPI, Celery or the worker (import-linter contracts in pyproject.toml).
+grader.services.errors. One package per bounded context; the pages (grader/pages/<context>), the API's routes
+(grader/api/routes/<context>) and the templates (grader/templates/<context>) use the same names. Each context's
+__init__ lists its modules and their public functions. Nothing here imports FastAPI, Celery, the worker or
+grader.web (import-linter contracts in pyproject.toml).
 
-accounts      courses, people and tokens          access       who may do what (roles, courses)
-submissions   submit, store, list                 assignments  admission, dates, penalties, counted grades
-visibility    what a user may see of a grade      exports      CSV, Gradescope, evidence files
-dashboard     the class dashboard, resend         regrade      preview and commit under another rubric version
-audit         the discrepancy log, audit re-runs  roster       roster import
-courses       course settings                     sheets       the sheet models for the API
-errors        the domain error tree               sending      what services need of the task queue
-sessions      page sessions (sign-in, sign-out)   quotas       per-person limits on costly requests
-sign_in_links students' single-use sign-in links   course_page  a student's course page, as data
-lti           LTI 1.3: registrations, keys, launches, deep links, scores sent to the LMS
-lti_outbox    scores sent to the LMS on their own: marked on change, sent by the reconciler, retried, shown
-overrides     an instructor's score for one item, with its comment, kept beside the measured verdict
-review_requests  a student's request to review one item, and the instructor's answer
+identity     accounts and tokens, page sessions, sign-in links, who may do what (access), per-person limits (quotas)
+setup        course settings, the change log, the roster, assignments (dates, attempts, penalties, extensions)
+submissions  submit, the sheet models and form, drafts, progress, visibility, overrides, review requests
+rubrics      rubric versions of a course: the tolerance review and sign-off, regrade preview and commit
+lti          LTI 1.3 registrations, keys, launches, deep links (launch); scores sent to the LMS (outbox)
+reports      read models: the class dashboard, exports, a student's course page, chart series, the audit log
+
+errors       the domain error tree               sending      what services need of the task queue (a protocol)
 """

@@ -1,4 +1,4 @@
-// The progress page (templates/progress.html): every poll-ms it asks progress.json for the submission's state and
+// The progress page (templates/submissions/progress.html): every poll-ms it asks progress.json for the submission's state and
 // puts the live part, rendered by the server as the page has it, in place; once graded or failed it goes to the
 // report. Without this script the page refreshes itself (its noscript refresh).
 (function () {

@@ -1,4 +1,4 @@
-/* The report's figures (section #figures of templates/report.html), drawn in the reader's browser with uPlot from
+/* The report's figures (section #figures of templates/submissions/report.html), drawn in the reader's browser with uPlot from
  * the measured series the app serves (each chart's data-src, grader/services/reports/series.py).
  *
  * Why here and not on the server: the series are a few tens of kB read from the database by any API host, where

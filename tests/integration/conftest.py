@@ -4,31 +4,13 @@ from __future__ import annotations
 
 import copy
 import os
-from dataclasses import dataclass
-from pathlib import Path
 
 import pytest
 
 from tests import services
 from tests.factories import create_people, reference_sheet
 from tests.integration.helpers import CHROMIUM, SHOTS, submit_and_wait
-
-
-@dataclass
-class Stack:
-    url: str
-    database_url: str
-    env: dict
-    data_dir: Path
-    tokens: dict[str, str]
-    engine: object
-    worker: object
-    logs: Path
-
-    def client(self, who: str = "alice"):
-        from grader.client import Client
-
-        return Client(self.url, self.tokens[who])
+from tools.harness.stack import Stack
 
 
 @pytest.fixture(scope="session")
@@ -68,7 +50,8 @@ def stack(tmp_path_factory, kernel_cache_filled):
         api = services.start_api(env, port, logs / "api.log")
         worker = services.start_worker(env, "cpu,grade", logs / "worker-cpu.log")
         try:
-            yield Stack(f"http://127.0.0.1:{port}", database_url, env, data_dir, tokens, engine, worker, logs)
+            yield Stack("redis-pg", f"http://127.0.0.1:{port}", database_url, env, data_dir, tokens, engine, worker, api,
+                        logs=logs)
         finally:
             services.stop(worker)
             services.stop(api)

@@ -111,7 +111,7 @@ def start_worker_on_host_b(link: Link, env: dict, queues: str, log: Path) -> sub
     namespace, so its DATA_DIR (env's, the same path as the API's) is a fresh private tmpfs: a new host B, or one
     that rebooted and lost its disk. Returned once Celery says it is ready; its pid is the worker's main process (ip
     netns exec, unshare and sh each exec the next), and its namespaces live as long as its process tree."""
-    from worker.celery_app import worker_argv  # lazy, as tools.bench.processes.start_worker: Celery on import
+    from worker.celery_app import worker_argv  # lazy, as tools.harness.processes.start_worker: Celery on import
 
     data_dir = Path(env["DATA_DIR"])
     env = env | {"QD_OFFLINE_CACHE_FILE_PATH": str(data_dir / "kernel-cache")}

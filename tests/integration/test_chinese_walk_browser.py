@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from grader import i18n
-from tests.grader.test_assignments import checkpoint_sheet
+from tests.grader.services.setup.test_assignments import checkpoint_sheet
 from tests.integration.helpers import SHOTS, at, measured_course_api
 
 pytestmark = pytest.mark.integration

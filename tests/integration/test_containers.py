@@ -86,7 +86,7 @@ def _wait(predicate, what: str, limit_s: float = WAIT_LIMIT_S, poll_s: float = 1
 
 
 @dataclass
-class Stack:
+class Deployment:
     """The compose project: its name, environment, proxy URL and certificate, and the tokens made in it."""
 
     project: str
@@ -158,28 +158,28 @@ def _certificate(folder: Path) -> Path:
     return folder / "fullchain.pem"
 
 
-def _image_size_mb(stack: Stack, image: str) -> float:
+def _image_size_mb(stack: Deployment, image: str) -> float:
     return int(stack.podman("image", "inspect", image, "--format", "{{.Size}}").stdout) / 1e6
 
 
-def _started_at(stack: Stack, container: str) -> datetime:
+def _started_at(stack: Deployment, container: str) -> datetime:
     return datetime.fromisoformat(re.sub(r"(\.\d{6})\d*", r"\1", stack.inspect(container)["State"]["StartedAt"])
                                   .replace(" UTC", "").replace(" +0000", "+00:00"))
 
 
-def _submit(stack: Stack, who: str, sheet: dict, **options) -> int:
+def _submit(stack: Deployment, who: str, sheet: dict, **options) -> int:
     with stack.http(stack.tokens[who]) as http:
         response = http.post("/v1/submissions", json={"sheet": sheet, **options})
         assert response.status_code in (200, 201, 202), response.text
         return response.json()["id"]
 
 
-def _submission(stack: Stack, who: str, submission_id: int) -> dict:
+def _submission(stack: Deployment, who: str, submission_id: int) -> dict:
     with stack.http(stack.tokens[who]) as http:
         return http.get(f"/v1/submissions/{submission_id}").json()
 
 
-def _graded(stack: Stack, who: str, submission_id: int) -> dict:
+def _graded(stack: Deployment, who: str, submission_id: int) -> dict:
     def done():
         try:
             final = _submission(stack, who, submission_id)
@@ -214,7 +214,7 @@ def stack(tmp_path_factory):
     proxy_file.write_text(f"services:\n  proxy:\n    ports: !override [\"127.0.0.1:{port}:443\"]\n"
                           f"    volumes: [\"{tls}:/etc/nginx/tls:ro\"]\n")
     env |= {"POSTGRES_PASSWORD": secrets.token_hex(16)}
-    deployment = Stack(f"l03ci{secrets.token_hex(4)}", env, f"https://127.0.0.1:{port}", ca, proxy_file)
+    deployment = Deployment(f"l03ci{secrets.token_hex(4)}", env, f"https://127.0.0.1:{port}", ca, proxy_file)
     try:
         up = time.monotonic()
         deployment.compose("up", "-d")

@@ -14,6 +14,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.core.models import CaseRun, Course, Submission, utcnow
+from rubric import load_rubric
 from tests import services
 from tests.factories import reference_sheet
 from tests.integration.helpers import (SHOTS, WAIT_LIMIT_S, case_runs, events, grades_of, images_decoded, signed_in,
@@ -119,7 +120,7 @@ def test_a_failed_and_a_stuck_run_are_resent_from_the_dashboard_and_graded(brows
     with Session(stack.engine) as session:
         user = session.scalar(select(User).where(User.name == "carol"))
         submission = submissions.create_submission(session=session, student=user, lesson="L03", sheet=sheet,
-                                            specs=sheets.cases_to_run(sheets.parse_sheet(sheet)), force_rerun=False)
+                                            specs=sheets.cases_to_run(sheets.parse_sheet(sheet), load_rubric("L03")), force_rerun=False)
         session.flush()
         runs = {r.name: r for r in submission.case_runs}
         lost = utcnow() - timedelta(hours=1)

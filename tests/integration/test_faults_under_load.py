@@ -66,7 +66,7 @@ def _kill_tree(pid: int) -> None:
 def _start_worker(env: dict, name: str, queues: tuple[str, ...], log: Path, *, heartbeat: bool = True):
     """The shipped worker command (`worker_argv`); returns the process and the UTC time it took cases: once its
     case slots are warm (worker.warm_gate: until then it takes none, and the runs wait in the broker)."""
-    from tools.bench.processes import WARM_UP_LIMIT_S
+    from tools.harness.processes import WARM_UP_LIMIT_S
     from worker.celery_app import worker_argv
     from worker.warm_gate import OPENED
 

@@ -1,5 +1,5 @@
 """LTI 1.3 over HTTP on loopback both ways: the tool under uvicorn on PostgreSQL, the platform lti1p3platform's
-(tests/grader/test_lti.py's harness), a real cookie jar between them. Launches race here on a real database."""
+(tests/grader/services/lti/test_lti.py's harness), a real cookie jar between them. Launches race here on a real database."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import pytest
 
 from tests import services
 from tests.factories import create_people
-from tests.grader.test_lti import CLIENT_ID, DEPLOYMENT_ID, LEARNER, Platform, _Form
+from tests.grader.services.lti.test_lti import CLIENT_ID, DEPLOYMENT_ID, LEARNER, Platform, _Form
 from tests.integration.helpers import at
 
 pytestmark = pytest.mark.integration

@@ -19,7 +19,7 @@ from sqlalchemy.orm import Session
 
 from tests import services
 from tests.factories import create_people, reference_sheet
-from tools.bench.processes import WARM_UP_LIMIT_S
+from tools.harness.processes import WARM_UP_LIMIT_S
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 

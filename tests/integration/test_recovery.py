@@ -58,7 +58,7 @@ def test_reconciler_resends_runs_whose_worker_vanished(stack):
         alice = session.query(User).filter_by(name="alice").one()
         sheet = reference_sheet()
         submission = submissions.create_submission(session=session, student=alice, lesson="L03", sheet=sheet,
-                                            specs=sheets.cases_to_run(sheets.parse_sheet(sheet)), force_rerun=False)
+                                            specs=sheets.cases_to_run(sheets.parse_sheet(sheet), load_rubric("L03")), force_rerun=False)
         session.flush()
         for run in submission.case_runs:  # claimed by a host that died; never on the broker any more
             run.status, run.worker, run.worker_pid = "running", "lost-host", 1

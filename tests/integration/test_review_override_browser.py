@@ -12,7 +12,7 @@ import io
 import httpx
 import pytest
 
-from tests.grader.test_assignments import checkpoint_sheet
+from tests.grader.services.setup.test_assignments import checkpoint_sheet
 from tests.integration.helpers import SHOTS, at, measured_course_api, signed_in
 
 pytestmark = pytest.mark.integration

@@ -152,7 +152,7 @@ def test_a_checkpoint_assignment_is_graded_by_the_worker_on_the_lesson_cases_the
     from datetime import UTC, timedelta
 
     from rubric.scoring import LESSON_RUNS
-    from tests.grader.test_assignments import checkpoint_sheet
+    from tests.grader.services.setup.test_assignments import checkpoint_sheet
 
     from grader.core import clock
 

@@ -15,7 +15,7 @@ import httpx
 import pytest
 
 from grader.core import clock
-from tests.grader.test_assignments import checkpoint_sheet
+from tests.grader.services.setup.test_assignments import checkpoint_sheet
 from tests.integration.helpers import SHOTS, measured_course_api
 
 pytestmark = pytest.mark.integration

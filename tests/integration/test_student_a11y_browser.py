@@ -11,7 +11,7 @@ import yaml
 
 from grader.core.states import SubmissionState
 from tests.factories import REFERENCE_YAML
-from tests.grader.test_assignments import checkpoint_sheet
+from tests.grader.services.setup.test_assignments import checkpoint_sheet
 from tests.integration.a11y import assert_accessible
 from tests.integration.helpers import at, measured_course_api, wait_until
 from tests.integration.test_student_course_browser import tab_to

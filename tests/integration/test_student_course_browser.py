@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.grader.test_assignments import checkpoint_sheet
+from tests.grader.services.setup.test_assignments import checkpoint_sheet
 from tests.integration.helpers import SHOTS, at, measured_course_api
 
 pytestmark = pytest.mark.integration

@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session
 
 from grader.core.models import CaseRun, RubricVersion, User
 from tests.factories import reference_sheet
-from tests.grader.test_tolerance_review import precision_twin
+from tests.grader.services.rubrics.test_tolerance_review import precision_twin
 from tests.integration.helpers import submit_and_wait
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]

@@ -8,6 +8,7 @@ import subprocess
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from rubric import load_rubric
 from tests.factories import create_people, reference_sheet
 
 
@@ -30,7 +31,7 @@ def test_a_starting_worker_resends_the_runs_of_dead_processes_on_its_host_ahead_
         sheet = reference_sheet()
         submission = submissions.create_submission(session=session, student=session.scalar(select(User).filter_by(name="alice")),
                                             lesson="L03", sheet=sheet, force_rerun=False,
-                                            specs=sheets.cases_to_run(sheets.parse_sheet(sheet)))
+                                            specs=sheets.cases_to_run(sheets.parse_sheet(sheet), load_rubric("L03")))
         session.flush()
         killed, alive, elsewhere = submission.case_runs[:3]
         for run, host, pid in ((killed, lifecycle.HOST, gone.pid), (alive, lifecycle.HOST, os.getpid()),

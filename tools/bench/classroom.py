@@ -18,7 +18,7 @@ from grader.core.settings import settings
 from worker.warm_gate import OPENED
 
 from tools.bench.cases import BenchFailure
-from tools.bench.processes import WARM_UP_LIMIT_S
+from tools.harness.processes import WARM_UP_LIMIT_S
 from tools.bench.submission import WAIT_LIMIT_S, reference_sheet
 
 # 20 table frictions (the lesson's 0.50 left out) and 20 extensions (dt, substeps) over the lesson's 1.5 s: 40
@@ -73,7 +73,7 @@ def _finished(engine) -> tuple[int, int, int, datetime | None, datetime | None]:
     return rows.get("graded", 0), rows.get("failed", 0), drawing, last, completed
 
 
-WARM_LIMIT_S = WARM_UP_LIMIT_S  # tools.bench.processes: a warm-up of two slots took 305 s on a loaded host
+WARM_LIMIT_S = WARM_UP_LIMIT_S  # tools.harness.processes: a warm-up of two slots took 305 s on a loaded host
 
 
 def wait_until_warm(stack, log: Callable[[str], None] = print) -> float | None:

@@ -16,7 +16,7 @@ import click
 
 from tools.bench import run
 from tools.bench.cases import BenchFailure
-from tools.bench.stack import ServiceUnavailable
+from tools.harness.stack import ServiceUnavailable
 
 PARTS = ("cases", "submission", "figures", "class", "memory", "api", "reads", "bounded", "slots")
 # --quick: the same measurements, smaller, in a few minutes.

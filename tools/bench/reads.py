@@ -18,8 +18,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 import httpx
-from tools.bench.processes import free_port, start_api, stop
-from tools.bench.stack import service_stack
+from tools.harness.processes import free_port, start_api, stop
+from tools.harness.stack import service_stack
 from tools.bench.stats import latency_summary, median
 
 READS = ("/submissions/{id}", "/submissions/{id}/results.json", "/v1/submissions/{id}", "/v1/submissions/{id}/grade")

@@ -16,7 +16,7 @@ from tools.bench.load import bench_api
 from tools.bench.memory import bench_memory
 from tools.bench.reads import format_reads, run_reads
 from tools.bench.slots import format_slots, run_slots
-from tools.bench.stack import service_stack
+from tools.harness.stack import service_stack
 from tools.bench.submission import bench_submission, reference_sheet, time_submission
 
 

@@ -15,7 +15,7 @@ import psutil
 
 from rubric import get_case
 from tools.bench.cases import BenchFailure
-from tools.bench.stack import service_stack
+from tools.harness.stack import service_stack
 from tools.bench.stats import median
 from tools.bench.submission import reference_sheet, time_submission
 from worker import WarmCaseProcess

@@ -6,7 +6,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse, PlainTextResponse
 
-from grader.core.rubrics import current_grade
+from grader.core.grades import current_grade
 from grader.pages.auth import InstructorCourse, SignedIn
 from grader.pages.errors import not_found
 from grader.services.errors import NotFound

@@ -12,7 +12,7 @@ from fastapi.responses import HTMLResponse, JSONResponse, Response
 
 from grader.web import etag
 from grader.web.deps import SessionDep
-from grader.core.rubrics import grade_history
+from grader.core.grades import grade_history
 from grader.core.states import SubmissionState
 from grader.core.models import Submission
 from grader.pages.auth import SignedIn, SignedInFetch

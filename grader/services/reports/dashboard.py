@@ -10,7 +10,6 @@ requests and the newest overrides (grader.services.submissions.review_requests, 
 
 from __future__ import annotations
 
-import json
 import logging
 import statistics
 from collections import Counter
@@ -146,7 +145,7 @@ class Dashboard(BaseModel):
 
 def current_grades(session: Session, *, course_id: int) -> dict[int, Grade]:
     """The grade each graded submission of a course stands on (not superseded by a regrade), by submission id.
-    One submission's is grader.core.rubrics.current_grade."""
+    One submission's is grader.core.grades.current_grade."""
     query = (select(Grade).join(Submission, Grade.submission_id == Submission.id)
              .where(Submission.course_id == course_id, Grade.superseded_at.is_(None)))
     return {g.submission_id: g for g in session.scalars(query)}
@@ -392,7 +391,3 @@ def assignment_grades(session: Session, course: Course) -> list[AssignmentGrades
                              grades=[counted_public(c) for c in counted_grades(session=session, assignment=a)])
             for a in rows]
 
-
-def chart_data(dashboard: Dashboard) -> str:
-    """The canonical JSON a chart is drawn from (its cache key and ETag)."""
-    return json.dumps(dashboard.model_dump(mode="json", include={"predictions", "backends"}), sort_keys=True)

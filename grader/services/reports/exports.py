@@ -15,7 +15,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.core.lifecycle import evidence_bytes, evidence_of
-from grader.core.rubrics import current_grade
+from grader.core.grades import current_grade
 from grader.core.models import Assignment, CaseRun, Course, Grade, Submission
 from grader.services.setup import assignments
 from grader.services.errors import Conflict, NotFound

@@ -3,7 +3,7 @@
 The regrade reads the measurements already stored with each submission's case runs, never runs a case: which
 cases a sheet needs is decided by the lesson and the sheet's configs (rubric.cases_to_run), and a submission whose
 new version needs a case it never measured is left on its grade with that reason. Committing supersedes each
-current grade with a new one under the new version and keeps the old (grader.core.rubrics.grade_history), and the
+current grade with a new one under the new version and keeps the old (grader.core.grades.grade_history), and the
 course grades its new submissions under that version from then on. Both are recorded with who and when.
 
 An instructor's override (grader.services.submissions.overrides) outlives a regrade: the new grade applies the submission's current

@@ -15,7 +15,7 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session, defer
 
 from grader.core.lti_outbox import scores_changed
-from grader.core.rubrics import current_grade
+from grader.core.grades import current_grade
 from grader.core.states import AssignmentParts, CountedAttempt, Role, Visibility
 from grader.core.timezones import iso, local
 from grader.core.models import Assignment, Course, Extension, Grade, Submission, User, utcnow

@@ -2,7 +2,7 @@
 
 The one place an override reaches a score is `overridden_report`, and the one place it is stored is `set_override`:
 it keeps the Override row (a later one supersedes it, both kept) and stores a new current Grade whose report
-carries the override, superseding the grade it overrode (grader.core.rubrics.grade_history keeps both). Every reader
+carries the override, superseding the grade it overrode (grader.core.grades.grade_history keeps both). Every reader
 reads the current grade (the visibility rule grader.services.submissions.visibility, the counted scores, the dashboard, the CSV
 and Gradescope exports, the API), so each uses the override without a second rule. A regrade applies the current
 overrides to its new grade the same way (grader.services.rubrics.regrade).
@@ -24,7 +24,7 @@ from sqlalchemy.orm import Session
 from grader.core.lifecycle import lock_submission
 from grader.core.overrides import current_overrides, measured_item, overridden_report  # noqa: F401 (re-exported)
 from grader.core.lti_outbox import scores_changed
-from grader.core.rubrics import current_grade
+from grader.core.grades import current_grade
 from grader.core.models import Grade, Override, Submission, User, utcnow
 from grader.schemas import UtcDateTime
 from grader.services.identity.access import require_instructor

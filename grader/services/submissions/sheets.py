@@ -76,8 +76,10 @@ def parse_sheet(data: dict[str, Any], part: str = "sheet"):
     return rubric.parse_sheet(data, part)
 
 
-def cases_to_run(sheet) -> list:
-    return list(rubric.cases_to_run(sheet))
+def cases_to_run(sheet, book) -> list:
+    """The cases grading `sheet` under `book` (the course's rubric version, grader.core.rubrics.course_rubric) needs:
+    the same version decides which configs obey the one-factor rule and so run, and then grades them."""
+    return list(rubric.cases_to_run(sheet, book))
 
 
 def checkpoints_only(sheet) -> bool:

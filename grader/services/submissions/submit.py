@@ -93,7 +93,8 @@ def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id
         attempt, late_seconds = assignments.admit(session=session, assignment=assignment, student=user, now=utcnow())
     try:
         parsed = sheets.parse_sheet(sheet, assignment.part if assignment else "sheet")
-        specs = sheets.cases_to_run(parsed)
+        book = course_rubric(session, user.course_id, parsed.lesson)
+        specs = sheets.cases_to_run(parsed, book)
     except ValidationError as exc:
 
         raise Invalid("invalid sheet", field_errors(describe_errors(exc), prefix="sheet")) from None
@@ -119,7 +120,6 @@ def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id
     _refuse_unserved_backends(to_send, sender)
     priorities = _fair_priorities(session, user, submission, to_send)
     if to_grade and sheets.checkpoints_only(parsed):
-        book = course_rubric(session, submission.course_id, submission.lesson)
         grading.grade_and_store(session=session, submission=submission, book=book, complete=True, detail=(
             "graded at once: no case run needed, the lesson's cases as already measured"))
         to_grade = False

@@ -31,7 +31,7 @@ from datetime import datetime
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from grader.core.rubrics import current_grade
+from grader.core.grades import current_grade
 from grader.core.states import CountedAttempt, Visibility
 from grader.core.timezones import iso
 from grader.core.models import Assignment, Grade, Submission, User, utcnow

@@ -10,7 +10,7 @@ from grader.web import etag
 from grader.web.deps import CurrentUser, SessionDep, SubmissionDep
 from grader.api.responses import errors
 from grader.api.views import case_runs_public, grade_history_public, grade_public, submission_public
-from grader.core.rubrics import grade_history
+from grader.core.grades import grade_history
 from grader.core.models import Event
 from grader.schemas import CaseRunPublic, EventPublic, GradeHistoryEntry, GradePublic, SubmissionCreate, SubmissionPublic
 from grader.services.submissions import submit as submissions

@@ -1,0 +1,1 @@
+"""Starting the service as real processes, for the benchmark (tools.bench) and the integration tests alike."""
