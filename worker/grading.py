@@ -25,7 +25,8 @@ from sqlalchemy.orm import Session
 from grader.core.lab_check import lab_check
 from grader.core.grading import grade_and_store
 from grader.core.lifecycle import stored_result, touch
-from grader.core.rubrics import course_rubric, current_grade
+from grader.core.rubrics import course_rubric
+from grader.core.grades import current_grade
 from grader.core.models import Event, Grade, Submission, utcnow
 from grader.core.settings import settings
 from grader.core.states import SubmissionState

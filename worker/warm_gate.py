@@ -27,7 +27,7 @@ from grader.core.states import Backend, values
 log = get_logger(__name__)  # under Celery's logger: the worker's log shows it (the root logger is not hijacked)
 
 TICK_S = 0.25
-OPENED = "case slots warm"  # the log line's words when the case queues open (tools.bench.processes waits on them)
+OPENED = "case slots warm"  # the log line's words when the case queues open (tools.harness.processes waits on them)
 
 _gate: dict = {}  # this worker's: name, queues, held, started_at, flags (a shared array, one per slot), warm_s
 
