@@ -34,7 +34,7 @@ from .discrepancy import (
     load_audit_tolerances,
 )
 from .exports import grades_csv, gradescope_results
-from .governance import ReportChanges, RubricGovernanceError, publish_version, report_changes
+from .governance import ReportChanges, RubricGovernanceError, publish_variant_space, publish_version, report_changes
 from .one_factor import ConfigFinding, one_factor_findings
 from .rubrics import Rubric, load_rubric
 from .scoring import ArchivedRubric, GradeReport, ItemGrade, cases_to_run, grade_sheet
@@ -98,6 +98,7 @@ __all__ = [
     "load_rubric",
     "one_factor_findings",
     "parse_sheet",
+    "publish_variant_space",
     "publish_version",
     "report_changes",
 ]
