@@ -18,6 +18,7 @@ from .space import (
     variant_space_for,
     variant_space_versions,
 )
+from .texts import answer_label, config_description, item_question, parameter_rows, parameter_summary, questions
 
 __all__ = [
     "CaseSet",
@@ -33,12 +34,18 @@ __all__ = [
     "Variant",
     "VariantPoolError",
     "VariantSpace",
+    "answer_label",
     "complete_parameters",
+    "config_description",
     "draw_pool",
     "fixed_quantities",
+    "item_question",
     "load_variant_space",
+    "parameter_rows",
+    "parameter_summary",
     "parameters_digest",
     "parse_variant_space",
+    "questions",
     "shipped_parameters",
     "shipped_variant",
     "variant_cases",
