@@ -32,6 +32,7 @@ from ..rubrics import Item, Rubric, load_rubric, version_key
 from ..sheet import PredictionSheet, answered
 from ..specs import field_changes
 from ..variants import CaseSet, Variant, complete_parameters
+from ..variants.texts import item_question
 
 Verdict = Literal["credit", "no_credit", "inconclusive", "one_factor_violation", "not_measured"]
 SHEET_CASE_PREFIX = "sheet."
@@ -277,7 +278,8 @@ def _grade_item(ctx: Context, item: Item) -> ItemGrade:
     feedback.append(f"Verdict: {_VERDICT_TEXT[outcome.verdict]}.")
     counted = outcome.verdict != "inconclusive"
     return ItemGrade(
-        id=item.id, question=item.question, part=item.part, kind=item.kind, points=item.points,
+        # Under a variant the question names the variant's numbers (rubric.variants.texts); else the rubric's text.
+        id=item.id, question=item_question(item, ctx.variant), part=item.part, kind=item.kind, points=item.points,
         score=item.points if outcome.verdict == "credit" else 0.0,
         max_score=item.points if counted else 0.0,
         verdict=outcome.verdict, prediction=_prediction(answer), expected=outcome.expected, measured=outcome.measured,

@@ -168,3 +168,23 @@ def test_an_unsubmitted_role_runs_as_the_variants_case(role):
     sheet = parse_sheet(data)
     spec = next(s for s in cases_to_run(sheet, RUBRIC, VARIANT) if s.name == role)
     assert spec == VARIANT.cases()[role] and sheet.spec_for(role, VARIANT.cases()) == spec
+
+
+def test_a_variant_report_asks_its_own_questions_and_exports_say_which_variant():
+    from rubric import grades_csv, gradescope_results
+
+    mine, _ = graded(variant_sheet(), VARIANT)
+    assert mine.item("B1").question == ("Which lane's effective pair value changes when table friction goes from "
+                                        "0.45 to 0.25?")
+    lesson, _ = graded(reference_sheet(), None)
+    assert [i.question for i in lesson.items] == [i.question for i in RUBRIC.items]
+    # Without variants the CSV is as it always was; with one, a variant column (empty for the lesson's parameters).
+    plain = grades_csv([("ref", lesson)]).splitlines()[0]
+    assert plain.startswith("student,rubric_version,total,max_total,complete,A1,")
+    mixed = grades_csv([("vera", mine), ("ref", lesson)]).splitlines()
+    assert mixed[0].startswith("student,rubric_version,variant,total,max_total,complete,A1,")
+    assert mixed[1].startswith("vera,2,v7-3,30,30,true,") and mixed[2].startswith("ref,2,,")
+    assert "rubric version 2 (sha256 " in gradescope_results(lesson, 1.0)["output"]
+    assert " on variant v7-3: 30 / 30" in gradescope_results(mine, 1.0)["output"].splitlines()[0]
+    assert gradescope_results(mine, 1.0)["tests"][5]["name"].startswith("B1: Which lane's effective pair value "
+                                                                        "changes when table friction goes from 0.45")
