@@ -33,6 +33,7 @@ from .discrepancy import (
     compare_relations,
     load_audit_tolerances,
 )
+from .copying import CopyEvidence, copy_evidence
 from .exports import grades_csv, gradescope_results
 from .governance import ReportChanges, RubricGovernanceError, publish_variant_space, publish_version, report_changes
 from .one_factor import ConfigFinding, one_factor_findings
@@ -85,6 +86,8 @@ __all__ = [
     "validate_arrays",
     "with_backend",
     "ConfigFinding",
+    "CopyEvidence",
+    "copy_evidence",
     "GradeReport",
     "ItemGrade",
     "PredictionSheet",

@@ -110,6 +110,13 @@ def case_name(sheet: PredictionSheet, role_or_case: str) -> str:
     return role_or_case
 
 
+def lesson_run_specs(variant: Variant | None = None) -> list:
+    """The lesson runs every sheet on `variant` is graded on (LESSON_RUNS, the variant's cases): what a pool measures
+    ahead of time, so that each student on the variant reuses them (the lab check reads a subset: CHECK_CASES)."""
+    cases = lesson_cases(variant)
+    return [cases[name] for name in LESSON_RUNS]
+
+
 def cases_to_run(sheet: PredictionSheet, rubric: Rubric | None = None, variant: Variant | None = None) -> list:
     """Every case grading needs: lesson cases not replaced by the sheet (the variant's, when given), plus its configs
     that obey the one-factor rule (a config that breaks it is graded as such, never run as if valid). Unique names.

@@ -188,3 +188,35 @@ def test_a_variant_report_asks_its_own_questions_and_exports_say_which_variant()
     assert " on variant v7-3: 30 / 30" in gradescope_results(mine, 1.0)["output"].splitlines()[0]
     assert gradescope_results(mine, 1.0)["tests"][5]["name"].startswith("B1: Which lane's effective pair value "
                                                                         "changes when table friction goes from 0.45")
+
+
+def test_a_pool_measures_each_variants_lesson_runs_once_for_all_its_students():
+    from rubric.scoring import lesson_run_specs
+
+    assert lesson_run_specs() == [BASELINE_CASES[n] for n in LESSON_RUNS]
+    specs = lesson_run_specs(VARIANT)
+    assert [s.name for s in specs] == list(LESSON_RUNS) and specs == [VARIANT.cases()[n] for n in LESSON_RUNS]
+    # Two students on the variant need exactly these lesson runs, whatever else their sheets hold.
+    for student in ("vera", "walt"):
+        needed = [s for s in cases_to_run(parse_sheet(variant_sheet(student)), RUBRIC, VARIANT)
+                  if not s.name.startswith(SHEET_CASE_PREFIX)]
+        assert needed == specs
+
+
+def test_answers_that_fit_another_variant_are_shown_with_the_items_and_the_variant():
+    from rubric.copying import copy_evidence
+
+    other = Variant(id="v7-4", space_version="1", parameters=VARIANT.parameters | {
+        "table_friction": 0.5, "exercise_table_friction": 0.3, "coarse_dt": 0.02, "more_substeps": 4,
+        "base_substeps": 2, "fine_dt": 0.01})
+    # Walt is on v7-4 but hands in Vera's sheet (her v7-3 numbers); graded on his own variant and, for the evidence,
+    # on hers. Nothing in the evidence changes his grade.
+    copied = variant_sheet("walt")
+    on_own, _ = graded(copied, other)
+    on_hers, _ = graded(copied, VARIANT)
+    found = copy_evidence(on_own.model_copy(update={"variant": "v7-4"}), {"v7-3": on_hers, "v7-4": on_own})
+    assert [(e.variant, e.items) for e in found] == [("v7-3", ["C1", "C5", "H1"])]
+    assert "C5: own 0.5, v7-3 0.45" in found[0].describe()
+    # An honest sheet fits its own variant: no evidence.
+    honest, _ = graded(variant_sheet(), VARIANT)
+    assert copy_evidence(honest, {"v7-4": on_own}) == []
