@@ -40,6 +40,17 @@ from .one_factor import ConfigFinding, one_factor_findings
 from .rubrics import Rubric, load_rubric
 from .scoring import ArchivedRubric, GradeReport, ItemGrade, cases_to_run, grade_sheet
 from .sheet import PredictionSheet, parse_sheet
+from .variants import (
+    Variant,
+    VariantPoolError,
+    VariantSpace,
+    draw_pool,
+    load_variant_space,
+    parameter_summary,
+    shipped_variant,
+    variant_cases,
+    variant_space_for,
+)
 
 __all__ = [
     "ArrayDiff",
@@ -104,4 +115,13 @@ __all__ = [
     "publish_variant_space",
     "publish_version",
     "report_changes",
+    "Variant",
+    "VariantPoolError",
+    "VariantSpace",
+    "draw_pool",
+    "load_variant_space",
+    "parameter_summary",
+    "shipped_variant",
+    "variant_cases",
+    "variant_space_for",
 ]

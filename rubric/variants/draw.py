@@ -16,11 +16,12 @@ from collections import Counter
 from collections.abc import Mapping
 from typing import Annotated
 
-from pydantic import Field
+from pydantic import Field, field_validator
+from pydantic_core import PydanticCustomError
 
 from ..rubrics import RubricModel
 from .apply import CaseSet, InvalidVariant, complete_parameters, variant_cases
-from .parameters import shipped_parameters
+from .parameters import PARAMETERS, shipped_parameters
 from .space import VariantSpace
 
 SHIPPED_ID = "shipped"
@@ -35,6 +36,28 @@ class Variant(RubricModel):
     space_version: str | None = None  # None: the lesson's shipped parameters, no space
     space_hash: str | None = None
     parameters: dict[str, Number]
+
+    @field_validator("parameters")
+    @classmethod
+    def _typed(cls, parameters: dict[str, Number]) -> dict[str, Number]:
+        """Every lesson parameter, each typed as the lesson types it (a stored 800 is density 800.0, substeps stay
+        whole), so one variant has one digest however its parameters were written down."""
+        unknown = sorted(set(parameters) - set(PARAMETERS))
+        missing = sorted(set(PARAMETERS) - set(parameters))
+        if unknown or missing:
+            raise PydanticCustomError("variant_parameters", "unknown parameters {unknown}, missing {missing}",
+                                      {"unknown": unknown, "missing": missing})
+        typed = {}
+        for name, knob in PARAMETERS.items():
+            value = parameters[name]
+            if knob.kind == "int":
+                if float(value) != int(value):
+                    raise PydanticCustomError("whole_number", "{name} takes whole numbers, got {value}",
+                                              {"name": name, "value": value})
+                typed[name] = int(value)
+            else:
+                typed[name] = float(value)
+        return typed
 
     @property
     def digest(self) -> str:

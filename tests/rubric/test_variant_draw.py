@@ -129,3 +129,25 @@ def test_variants_differ_from_each_other_in_as_many_parameters_as_asked():
     for i, a in enumerate(params):
         for b in params[i + 1:]:
             assert sum(a[n] != b[n] for n in a) >= 4
+
+
+def test_a_stored_variant_reads_back_typed_as_the_lesson_types_its_parameters():
+    from pydantic import ValidationError
+
+    from rubric.variants import Variant
+
+    pool = draw_pool(SPACE, 5, 3)
+    for v in pool.variants:
+        again = Variant.model_validate_json(v.model_dump_json())
+        assert again == v and again.digest == v.digest
+    loose = Variant(id="v5-9", parameters=shipped_parameters() | {"cube_rho": 800, "more_substeps": 3.0})
+    assert loose.parameters["cube_rho"] == 800.0 and type(loose.parameters["cube_rho"]) is float
+    assert type(loose.parameters["more_substeps"]) is int
+    assert loose.digest == Variant(id="v5-9", parameters=shipped_parameters() | {"cube_rho": 800.0,
+                                                                                 "more_substeps": 3}).digest
+    with pytest.raises(ValidationError, match="more_substeps takes whole numbers, got 2.5"):
+        Variant(id="v5-9", parameters=shipped_parameters() | {"more_substeps": 2.5})
+    with pytest.raises(ValidationError, match=r"unknown parameters \['drop_height'\], missing \['cube_start_z'\]"):
+        params = shipped_parameters()
+        params["drop_height"] = params.pop("cube_start_z")
+        Variant(id="v5-9", parameters=params)
