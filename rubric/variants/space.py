@@ -1,6 +1,6 @@
 """A lesson's variant space as reviewed data: which parameters vary, over which values, under which constraints.
 
-One file per version, `rubric/lessons/L03-variants-vN.yaml`, beside the rubric version it was reviewed for
+One file per version, `rubric/lessons/L03-lab-variants-vN.yaml`, beside the rubric version it was reviewed for
 (`grading_rubric`), versioned and reviewed as tolerances are (rubric.governance.publish_variant_space): every parameter
 and constraint carries its rationale, reviewer and date, a used version is immutable, a change needs a new version
 with a fresh review of what changed. A rubric version with no variant file has no variants: it grades as it always did.
@@ -182,8 +182,8 @@ def parse_variant_space(data: Mapping) -> VariantSpace:
 
 
 def variant_space_versions(lesson: str = "L03") -> list[str]:
-    """Variant space versions shipped for a lesson, oldest first (files named LESSON-variants-vVERSION.yaml)."""
-    pattern = re.compile(rf"^{re.escape(lesson)}-variants-v([0-9.]+)\.yaml$")
+    """Variant space versions shipped for a lesson, oldest first (files named LESSON-lab-variants-vVERSION.yaml)."""
+    pattern = re.compile(rf"^{re.escape(lesson)}-lab-variants-v([0-9.]+)\.yaml$")
     found = [m.group(1) for p in rubrics.LESSONS_DIR.glob("*.yaml") if (m := pattern.match(p.name))]
     return sorted((v for v in found if re.match(VERSION_PATTERN, v)), key=version_key)
 
@@ -197,12 +197,12 @@ def load_variant_space(lesson: str = "L03", version: str | None = None) -> Varia
     version = version or versions[-1]
     if version not in versions:
         raise LookupError(f"lesson {lesson} has no variant space version {version!r}; known: {', '.join(versions)}")
-    data = yaml.safe_load((rubrics.LESSONS_DIR / f"{lesson}-variants-v{version}.yaml").read_text())
+    data = yaml.safe_load((rubrics.LESSONS_DIR / f"{lesson}-lab-variants-v{version}.yaml").read_text())
     space = parse_variant_space(data)
     if (space.lesson, space.version) != (lesson, version):
-        raise ValueError(f"{lesson}-variants-v{version}.yaml declares lesson {space.lesson} version {space.version}")
+        raise ValueError(f"{lesson}-lab-variants-v{version}.yaml declares lesson {space.lesson} version {space.version}")
     if space.grading_rubric not in rubrics.rubric_versions(lesson):
-        raise ValueError(f"{lesson}-variants-v{version}.yaml: grading_rubric {space.grading_rubric!r} is not a "
+        raise ValueError(f"{lesson}-lab-variants-v{version}.yaml: grading_rubric {space.grading_rubric!r} is not a "
                          f"published rubric version of {lesson}")
     return space
 

@@ -97,7 +97,7 @@ def test_a_variant_file_naming_an_unpublished_rubric_is_refused(tmp_path, monkey
     for path in rubrics.LESSONS_DIR.glob("L03-v*.yaml"):
         (tmp_path / path.name).write_text(path.read_text())
     data = load_variant_space("L03").model_dump(mode="json") | {"grading_rubric": "7"}
-    (tmp_path / "L03-variants-v1.yaml").write_text(yaml.safe_dump(data))
+    (tmp_path / "L03-lab-variants-v1.yaml").write_text(yaml.safe_dump(data))
     monkeypatch.setattr(rubrics, "LESSONS_DIR", tmp_path)
     with pytest.raises(ValueError, match="grading_rubric '7' is not a published rubric version of L03"):
         load_variant_space("L03")
@@ -129,3 +129,7 @@ def test_the_rule_language_evaluates_without_eval():
         with pytest.raises(RuleError):
             parse_rule(text, names)
 
+
+
+def test_no_glob_for_rubric_versions_picks_up_the_variant_file():
+    assert not [p.name for p in rubrics.LESSONS_DIR.glob("L03-v*.yaml") if "variant" in p.name]
