@@ -10,7 +10,7 @@ from rubric.governance import variant_space_changes
 from rubric.variants import load_variant_space, parse_variant_space
 
 V1 = load_variant_space("L03")
-NEW_REVIEW = {"reviewer": "second reviewer", "review_date": "2026-12-01"}  # a review record's date, not a clock time
+NEW_REVIEW = {"reviewer": "second reviewer", "review_date": "2026-12-01"}  # not a clock time: a review record
 
 
 def edited(*, version="2", review=NEW_REVIEW, **sections):
@@ -42,7 +42,7 @@ def test_a_new_version_needs_its_own_review_and_a_fresh_review_of_each_change():
     loosened = {"rule": "high_lane_friction - table_friction >= 0.1"}
     with pytest.raises(RubricGovernanceError, match="constraints.baseline_lanes_resolvable: changed"):
         publish_variant_space(edited(constraints={"baseline_lanes_resolvable": loosened}), [V1], {"1"})
-    backdated = {"reviewer": "second reviewer", "review_date": "2026-11-01"}
+    backdated = {"reviewer": "second reviewer", "review_date": "2026-11-01"}  # not a clock time: a review record
     with pytest.raises(RubricGovernanceError, match="parameters.table_friction: changed"):
         publish_variant_space(edited(parameters={"table_friction": widened | backdated}), [V1], {"1"})
     reviewed = edited(parameters={"table_friction": widened | NEW_REVIEW},
