@@ -33,12 +33,24 @@ from .discrepancy import (
     compare_relations,
     load_audit_tolerances,
 )
+from .copying import CopyEvidence, copy_evidence
 from .exports import grades_csv, gradescope_results
-from .governance import ReportChanges, RubricGovernanceError, publish_version, report_changes
+from .governance import ReportChanges, RubricGovernanceError, publish_variant_space, publish_version, report_changes
 from .one_factor import ConfigFinding, one_factor_findings
 from .rubrics import Rubric, load_rubric
 from .scoring import ArchivedRubric, GradeReport, ItemGrade, cases_to_run, grade_sheet
 from .sheet import PredictionSheet, parse_sheet
+from .variants import (
+    Variant,
+    VariantPoolError,
+    VariantSpace,
+    draw_pool,
+    load_variant_space,
+    parameter_summary,
+    shipped_variant,
+    variant_cases,
+    variant_space_for,
+)
 
 __all__ = [
     "ArrayDiff",
@@ -85,6 +97,8 @@ __all__ = [
     "validate_arrays",
     "with_backend",
     "ConfigFinding",
+    "CopyEvidence",
+    "copy_evidence",
     "GradeReport",
     "ItemGrade",
     "PredictionSheet",
@@ -98,6 +112,16 @@ __all__ = [
     "load_rubric",
     "one_factor_findings",
     "parse_sheet",
+    "publish_variant_space",
     "publish_version",
     "report_changes",
+    "Variant",
+    "VariantPoolError",
+    "VariantSpace",
+    "draw_pool",
+    "load_variant_space",
+    "parameter_summary",
+    "shipped_variant",
+    "variant_cases",
+    "variant_space_for",
 ]

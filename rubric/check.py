@@ -20,6 +20,8 @@ from .relations import cases_agree, lanes_by_pair, proxy_change, stop_change
 from .results import FRAME_FIELDS, CaseResult, discretization_problems
 from .rubrics import Rubric, load_rubric
 from .specs import field_changes
+from .variants import Variant
+from .variants.texts import duration_condition
 
 # The lesson's case table (dt, substeps -> substep_dt, internal updates over 1.5 s), copied from the lesson text so
 # the check compares derived values against the lesson, not against the same code that derived them.
@@ -31,6 +33,21 @@ LESSON_TIMING = {
 }
 LESSON_DURATION_S = 1.5
 BASELINE, TABLE_030 = "friction-baseline", "friction-table-0.30"
+
+
+def variant_timing(variant: Variant) -> tuple[dict[str, dict], float]:
+    """The case table and duration a variant's check expects, by the lesson's own arithmetic on the variant's
+    parameters (dt / substeps, duration / dt), not read from the specs whose runs it checks."""
+    p = variant.parameters
+    grid = {"N1": ("fine_dt", "base_substeps"), "N2": ("fine_dt", "more_substeps"),
+            "N3": ("coarse_dt", "base_substeps"), "N4": ("coarse_dt", "more_substeps")}
+    table = {}
+    for name, (dt_name, sub_name) in grid.items():
+        dt, substeps = p[dt_name], p[sub_name]
+        samples = round(p["duration"] / dt)
+        table[name] = dict(dt=dt, substeps=substeps, substep_dt=dt / substeps, samples=samples,
+                           internal_updates=samples * substeps)
+    return table, p["duration"]
 
 
 def verdict_line(passed: bool, failed: Iterable[str] = ()) -> str:
@@ -120,12 +137,15 @@ class CheckReport(BaseModel):
         return "\n".join(lines)
 
 
-def evaluate(results: dict[str, CaseResult], *, outputs: OutputLocation, rubric: Rubric | None = None) -> CheckReport:
+def evaluate(results: dict[str, CaseResult], *, outputs: OutputLocation, rubric: Rubric | None = None,
+             variant: Variant | None = None) -> CheckReport:
     """Evaluate every lab condition on `results` (keyed by case name: N1-N4 and the two friction runs).
 
-    Tolerances come from `rubric` (default: the latest published L03 version).
+    Tolerances come from `rubric` (default: the latest published L03 version). Under a `variant` (a pool's variant
+    checked before students see it) the timing table and duration are the variant's; every relation is the lesson's.
     """
     tol = _Tolerances(rubric or load_rubric("L03"))
+    timing, duration = (LESSON_TIMING, LESSON_DURATION_S) if variant is None else variant_timing(variant)
     ok = {name: r for name, r in results.items() if r.ok}
     contact = {n: ok[n].metrics for n in CONTACT_CASES if n in ok}
     lanes = [m for name in (BASELINE, TABLE_030) if name in ok for m in ok[name].metrics.lanes.values()]
@@ -134,8 +154,8 @@ def evaluate(results: dict[str, CaseResult], *, outputs: OutputLocation, rubric:
         _processes(results),
         _rendering(results),
         _arrays(results),
-        _duration(results, ok),
-        _timing_table(ok),
+        _duration(results, ok, duration, duration_condition(variant)),
+        _timing_table(ok, timing),
         _contact(contact, ok),
         _substeps_reduce_proxy(contact, tol),
         _n1_n4(alignment, tol),
@@ -218,7 +238,7 @@ def _arrays(results) -> Condition:
                      title="all required arrays have the expected length and contain finite values")
 
 
-def _duration(results, ok) -> Condition:
+def _duration(results, ok, duration: float, title: str) -> Condition:
     """Read from what the engine reported (provenance) and from the sampled time axis itself, not from the spec."""
     lines, passed = _missing(results, CONTACT_CASES), not _missing(results, CONTACT_CASES)
     counts = {}
@@ -227,7 +247,7 @@ def _duration(results, ok) -> Condition:
             continue
         d, t = ok[name].provenance.discretization, ok[name].arrays["t"]
         problems = discretization_problems(ok[name].spec, d, t)
-        good = not problems and math.isclose(d.duration, LESSON_DURATION_S, rel_tol=1e-9)
+        good = not problems and math.isclose(d.duration, duration, rel_tol=1e-9)
         counts[name] = len(t)
         passed &= good
         lines.append(f"{name}: engine ran {d.n_steps} outer steps x dt {d.dt:g} s = {d.duration:.4f} s; {len(t)} samples "
@@ -238,13 +258,12 @@ def _duration(results, ok) -> Condition:
     if len(by_dt) < 2 or any(len(v) != 1 for v in by_dt.values()) or len({min(v) for v in by_dt.values()}) != len(by_dt):
         passed = False
         lines.append(f"sample count does not change with dt as expected: {by_dt}")
-    return Condition(id="duration", passed=passed, evidence="\n".join(lines),
-                     title="every contact case covers 1.5 s, so sample count changes with dt")
+    return Condition(id="duration", passed=passed, evidence="\n".join(lines), title=title)
 
 
-def _timing_table(ok) -> Condition:
+def _timing_table(ok, timing: dict[str, dict]) -> Condition:
     lines, passed = [], True
-    for name, expected in LESSON_TIMING.items():
+    for name, expected in timing.items():
         if name not in ok:
             passed = False
             lines.append(f"{name}: no result")

@@ -45,6 +45,8 @@ def grades_csv(reports: Sequence[tuple[str, GradeReport]], *,
     after the student, so a row can be traced to the attempt it grades.
     An inconclusive item is written as an empty cell: it is not counted, and a 0 would read as a penalty.
     Reports may come from different rubric versions; the item columns are their union, first seen first.
+    Where any report was graded on a per-student variant, a `variant` column follows rubric_version (empty for a
+    report on the lesson's own parameters); without variants the columns are as they always were.
     """
     if submissions is not None and len(submissions) != len(reports):
         raise ValueError(f"{len(submissions)} submissions for {len(reports)} reports")
@@ -52,12 +54,15 @@ def grades_csv(reports: Sequence[tuple[str, GradeReport]], *,
     for _, report in reports:
         item_ids += [i.id for i in report.items if i.id not in item_ids]
     traced = ["submission_id", "submitted_at"] if submissions is not None else []
-    rows = [[CSV_FIXED_COLUMNS[0], *traced, *CSV_FIXED_COLUMNS[1:], *item_ids]]
+    varied = any(report.variant is not None for _, report in reports)
+    fixed = [CSV_FIXED_COLUMNS[1], "variant", *CSV_FIXED_COLUMNS[2:]] if varied else list(CSV_FIXED_COLUMNS[1:])
+    rows = [[CSV_FIXED_COLUMNS[0], *traced, *fixed, *item_ids]]
     for n, (student, report) in enumerate(reports):
         scores = {i.id: ("" if i.verdict == "inconclusive" else _number(i.score)) for i in report.items}
         trace = [str(submissions[n][0]), submissions[n][1]] if submissions is not None else []
-        rows.append([student, *trace, report.rubric_version, _number(report.total), _number(report.max_total),
-                     str(report.complete).lower(), *(scores.get(i, "") for i in item_ids)])
+        variant = [report.variant or ""] if varied else []
+        rows.append([student, *trace, report.rubric_version, *variant, _number(report.total),
+                     _number(report.max_total), str(report.complete).lower(), *(scores.get(i, "") for i in item_ids)])
     return csv_text(rows)
 
 
@@ -74,8 +79,9 @@ def gradescope_results(report: GradeReport, execution_time: float,
     unknown = {k: v for k, v in visibility.items() if v not in GRADESCOPE_VISIBILITIES}
     if unknown:
         raise ValueError(f"Gradescope visibility must be one of {', '.join(GRADESCOPE_VISIBILITIES)}; got {unknown}")
+    on = f" on variant {report.variant}" if report.variant is not None else ""
     header = (f"{report.lesson} graded under rubric version {report.rubric_version} "
-              f"(sha256 {report.rubric_hash[:12]}): {_number(report.total)} / {_number(report.max_total)}")
+              f"(sha256 {report.rubric_hash[:12]}){on}: {_number(report.total)} / {_number(report.max_total)}")
     notes = [f"config: {finding}" for finding in report.config_findings]
     if not report.complete:
         notes.append("some items could not be measured; they score 0 until the cases are measured")

@@ -1,5 +1,6 @@
 """Rubric governance, pure functions with no storage: a version that any grade used is immutable, a changed
 tolerance needs a new version with its own review record, and a regrade is previewed per student before commit.
+A lesson's variant space (rubric.variants) is governed by the same rules: publish_variant_space.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from pydantic import BaseModel
 
 from .rubrics import Rubric, version_key
 from .scoring import GradeReport
+from .variants.space import VariantSpace
 
 
 class RubricGovernanceError(ValueError):
@@ -68,6 +70,62 @@ def rubric_changes(old: Rubric, new: Rubric) -> list[str]:
         if old_items.get(item_id) != new_items.get(item_id):
             changes.append(f"items.{item_id}")
     for field in ("engine_version", "review", "configs"):
+        if getattr(old, field) != getattr(new, field):
+            changes.append(field)
+    return changes
+
+
+def publish_variant_space(new: VariantSpace, existing: Sequence[VariantSpace], used_versions: set[str]) -> VariantSpace:
+    """Accept `new` as a publishable variant space of its lesson, or raise RubricGovernanceError saying why not.
+
+    The rules of publish_version: a version any pool used is immutable (identical content is a no-op, an unused draft
+    may be replaced); a new version needs its own review record; every parameter or constraint whose content differs
+    from the latest earlier version's needs a fresh review (reviewer or date differing, date not earlier)."""
+    same_lesson = [s for s in existing if s.lesson == new.lesson]
+    prior = next((s for s in same_lesson if s.version == new.version), None)
+    if prior is not None:
+        if prior.content_hash == new.content_hash:
+            return prior
+        if new.version in used_versions:
+            raise RubricGovernanceError(
+                f"variant space {new.lesson} version {new.version} is used by a variant pool and is immutable "
+                f"(stored hash {prior.content_hash[:12]}, new {new.content_hash[:12]}); changes: "
+                f"{', '.join(variant_space_changes(prior, new)) or 'content'}; publish them as a new version")
+    earlier = [s for s in same_lesson if version_key(s.version) < version_key(new.version)]
+    if not earlier:
+        return new
+    previous = max(earlier, key=lambda s: version_key(s.version))
+    if new.review == previous.review:
+        raise RubricGovernanceError(f"variant space version {new.version} repeats the review record of version "
+                                    f"{previous.version}; a new version needs its own review")
+    for section in ("parameters", "constraints"):
+        for name, declared in getattr(new, section).items():
+            old = getattr(previous, section).get(name)
+            if old is None or _declared(old) == _declared(declared):
+                continue
+            if (declared.reviewer, declared.review_date) == (old.reviewer, old.review_date) or \
+                    declared.review_date < old.review_date:
+                raise RubricGovernanceError(
+                    f"{section}.{name}: changed {_declared(old)} -> {_declared(declared)} without a new review "
+                    f"(reviewer and date still {old.reviewer}, {old.review_date})")
+    return new
+
+
+def _declared(declared) -> dict:
+    """What a parameter or constraint declares, without its review record (a rationale's wording is not a change)."""
+    return declared.model_dump(mode="json", exclude={"rationale", "reviewer", "review_date"}, exclude_none=True)
+
+
+def variant_space_changes(old: VariantSpace, new: VariantSpace) -> list[str]:
+    """Human-readable differences between two variant space versions (what varies, then the constraints)."""
+    changes = []
+    for section in ("parameters", "constraints"):
+        a, b = getattr(old, section), getattr(new, section)
+        for name in sorted(set(a) | set(b)):
+            if a.get(name) != b.get(name):
+                show = lambda d: _declared(d) if d is not None else "absent"  # noqa: E731
+                changes.append(f"{section}.{name}: {show(a.get(name))} -> {show(b.get(name))}")
+    for field in ("grading_rubric", "engine_version", "review"):
         if getattr(old, field) != getattr(new, field):
             changes.append(field)
     return changes

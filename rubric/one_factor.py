@@ -1,7 +1,8 @@
 """The one-factor rule: each submitted config compared field by field with the baseline its rubric rule declares.
 
 Only the fields a rule lists may differ. Visual-layer fields (Surface colours) are reported but never violate the
-rule: they are not engine inputs of the physics, so they cannot confound a comparison.
+rule: they are not engine inputs of the physics, so they cannot confound a comparison. Under a student's variant the
+lesson's cases are the variant's (rubric.variants), so "only table friction changed" is judged against their baseline.
 """
 
 from __future__ import annotations
@@ -11,7 +12,8 @@ from pydantic import BaseModel
 from .cases import BASELINE_CASES
 from .rubrics import ConfigRule, Rubric
 from .sheet import PredictionSheet
-from .specs import FieldChange, field_changes
+from .specs import ContactCase, FieldChange, FrictionCase, field_changes
+from .variants import CaseSet, Variant, variant_cases
 
 
 class ConfigFinding(BaseModel):
@@ -40,13 +42,27 @@ class ConfigFinding(BaseModel):
                 f"{', '.join(self.may_change) or 'nothing'} may change, but also: {lines}{note}")
 
 
-def one_factor_findings(sheet: PredictionSheet, rubric: Rubric) -> dict[str, ConfigFinding]:
-    """For every submitted config, the field-by-field comparison with the baseline its rubric rule declares."""
+def lesson_cases(variant: Variant | None = None) -> CaseSet:
+    """The case table a student's configs are compared with: their variant's, or the lesson's shipped one."""
+    return BASELINE_CASES if variant is None else variant_cases(variant.parameters)
+
+
+def role_baseline(role: str, rubric: Rubric, variant: Variant | None = None) -> ContactCase | FrictionCase:
+    """The lesson case a role's config starts from and is compared with (the form's starting config), under the
+    student's variant when given: e.g. table_exercise -> the variant's friction-baseline."""
+    return lesson_cases(variant)[rubric.configs[role].baseline]
+
+
+def one_factor_findings(sheet: PredictionSheet, rubric: Rubric, variant: Variant | None = None
+                        ) -> dict[str, ConfigFinding]:
+    """For every submitted config, the field-by-field comparison with the baseline its rubric rule declares: the
+    student's own config of that role, else the lesson's case, taken from the student's variant when given."""
+    cases = lesson_cases(variant)
     findings = {}
     for role, spec in sheet.configs.submitted().items():
         rule: ConfigRule = rubric.configs[role]
         # A role declared against itself (N1 vs N1) is compared with the lesson's case, not with its own copy.
-        base = BASELINE_CASES[rule.baseline] if rule.baseline == role else sheet.spec_for(rule.baseline)
+        base = cases[rule.baseline] if rule.baseline == role else sheet.spec_for(rule.baseline, cases)
         changes = field_changes(base, spec)
         findings[role] = ConfigFinding(
             role=role,

@@ -8,6 +8,7 @@ The one-factor rule that each submitted config must obey is rubric.one_factor.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -242,9 +243,11 @@ class PredictionSheet(SheetModel):
     answers: Answers
     configs: Configs
 
-    def spec_for(self, name: str) -> ContactCase | FrictionCase:
-        """A role's spec: the student's own when submitted, else the lesson's baseline case of that name."""
-        return self.configs.submitted().get(name) or BASELINE_CASES[name]
+    def spec_for(self, name: str, cases: Mapping[str, ContactCase | FrictionCase] | None = None
+                 ) -> ContactCase | FrictionCase:
+        """A role's spec: the student's own when submitted, else the lesson's case of that name (from `cases`, the
+        student's variant's case table, when given; rubric.variants.variant_cases)."""
+        return self.configs.submitted().get(name) or (BASELINE_CASES if cases is None else cases)[name]
 
     @model_validator(mode="after")
     def _distinct_case_names(self) -> "PredictionSheet":

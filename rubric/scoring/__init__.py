@@ -15,8 +15,9 @@ from .scorer import (
     Verdict,
     case_name,
     cases_to_run,
+    lesson_run_specs,
     grade_sheet,
 )
 
 __all__ = ["SCORING_RULES", "LESSON_RUNS", "SHEET_CASE_PREFIX", "ArchivedRubric", "GradeReport", "ItemGrade", "Verdict", "case_name",
-           "cases_to_run", "grade_sheet"]
+           "cases_to_run", "lesson_run_specs", "grade_sheet"]

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..cases import BASELINE_CASES, COLOR_SWAP
+from ..cases import COLOR_SWAP
 from ..metrics import align, separation_mask
 from ..rubrics import Item
-from .scorer import Context, Outcome, credit, scoring_rule
+from .scorer import Context, NotMeasured, Outcome, credit, scoring_rule
 from .part_b import BASELINE, measured_color_effect, pair_disagreements, pair_of
 
 _RULES = {"max": max, "min": min, "mean": lambda a, b: (a + b) / 2, "product": lambda a, b: a * b}
@@ -35,7 +35,7 @@ def timing_n4(ctx: Context, item: Item, a) -> Outcome:
 
 @scoring_rule("equal_steps_invalid")
 def equal_steps_invalid(ctx: Context, item: Item, a) -> Outcome:
-    n1, n3 = BASELINE_CASES["N1"], BASELINE_CASES["N3"]
+    n1, n3 = ctx.cases["N1"], ctx.cases["N3"]
     covered = n1.n_steps * n3.dt
     return Outcome(credit(a.reason == "unequal_simulated_duration"), "unequal_simulated_duration",
                    f"{n1.n_steps} steps cover {n1.n_steps * n1.dt:g} s at dt {n1.dt:g} but {covered:g} s at dt {n3.dt:g}",
@@ -77,8 +77,15 @@ def zero_contact(ctx: Context, item: Item, a) -> Outcome:
 @scoring_rule("pair_value_low")
 def pair_value_low(ctx: Context, item: Item, a) -> Outcome:
     lanes = ctx.friction(BASELINE).lanes
-    # The lesson's pair: table 0.50 with the cube of friction 0.10, found by the engine's own per-side values.
-    lane = next(m for m in lanes.values() if np.isclose(m.table_friction, 0.50) and np.isclose(m.cube_friction, 0.10))
+    # The question's pair (the lesson's table 0.50 with the cube of friction 0.10, or the student's variant's table
+    # and low-lane values), found by the engine's own per-side values.
+    table, cube = ctx.parameters["table_friction"], ctx.parameters["low_lane_friction"]
+    lane = next((m for m in lanes.values() if np.isclose(m.table_friction, table) and np.isclose(m.cube_friction, cube)),
+                None)
+    if lane is None:
+        raise NotMeasured(f"no lane of {ctx.run_name(BASELINE)} ran with table friction {table:g} and cube friction "
+                          f"{cube:g}: " + ", ".join(f"{m.lane} ({m.table_friction:g}, {m.cube_friction:g})"
+                                                     for m in lanes.values()))
     ok = abs(a.pair_friction - pair_of(ctx, BASELINE, lane)) <= ctx.tol("pair_friction_abs")
     measured = (f"the engine's contact friction for lane '{lane.lane}' (table {lane.table_friction:g}, cube "
                 f"{lane.cube_friction:g}) in {BASELINE}: {lane.pair_friction:g}")

@@ -12,11 +12,14 @@ CONTACT_ROLES = ("N1", "N2", "N3", "N4")
 
 @scoring_rule("sample_counts")
 def sample_counts(ctx: Context, item: Item, a) -> Outcome:
+    """The question names the finer and the coarser dt's sample counts (150 and 75 in the lesson, the variant's own
+    otherwise); the answer's `samples_150` lists the cases with the first count, `samples_75` those with the second."""
+    many, few = ctx.cases["N1"].sample_count, ctx.cases["N3"].sample_count
     counts = {role: len(ctx.result(role).arrays["t"]) for role in CONTACT_ROLES}
-    want150 = sorted(role for role, n in counts.items() if n == 150)
-    want75 = sorted(role for role, n in counts.items() if n == 75)
-    ok = sorted(a.samples_150) == want150 and sorted(a.samples_75) == want75
-    return Outcome(credit(ok), f"150 samples: {want150}, 75 samples: {want75}",
+    want_many = sorted(role for role, n in counts.items() if n == many)
+    want_few = sorted(role for role, n in counts.items() if n == few)
+    ok = sorted(a.samples_150) == want_many and sorted(a.samples_75) == want_few
+    return Outcome(credit(ok), f"{many} samples: {want_many}, {few} samples: {want_few}",
                    "measured array lengths: " + ", ".join(f"{role} {n}" for role, n in counts.items()),
                    {f"{role}_samples": n for role, n in counts.items()}, ctx.backends(*CONTACT_ROLES))
 

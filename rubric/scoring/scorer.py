@@ -8,6 +8,9 @@ verdict, what was expected and the evidence with the backend of every run it rea
 - not_measured: a run the item needs failed or was never run (no credit, visible).
 A config fault voids only the items that read the run it concerns: a rule that reads a role whose config broke
 the one-factor rule is stopped there and says which config and why; every other item keeps its score.
+Under a student's variant (rubric.variants) the lesson's cases, the one-factor baselines and the numbers the expected
+answers name are the variant's, and a lesson run measured under other parameters is not graded (not_measured, named);
+with no variant everything is the lesson's shipped table, exactly as before variants existed.
 """
 
 from __future__ import annotations
@@ -19,14 +22,17 @@ from typing import Literal
 
 from pydantic import BaseModel
 
-from ..cases import BASELINE_CASES, COLOR_SWAP
+from ..cases import COLOR_SWAP
 from ..check import CheckOutcome
 from ..guards import gradable
 from ..metrics import ContactMetrics, FrictionMetrics, LaneMetrics
-from ..one_factor import ConfigFinding, one_factor_findings
+from ..one_factor import ConfigFinding, lesson_cases, one_factor_findings
 from ..results import CaseResult
 from ..rubrics import Item, Rubric, load_rubric, version_key
 from ..sheet import PredictionSheet, answered
+from ..specs import field_changes
+from ..variants import CaseSet, Variant, complete_parameters
+from ..variants.texts import item_question
 
 Verdict = Literal["credit", "no_credit", "inconclusive", "one_factor_violation", "not_measured"]
 SHEET_CASE_PREFIX = "sheet."
@@ -69,6 +75,8 @@ class GradeReport(BaseModel):
     # The lab check (L03 CHECK line and its conditions) evaluated on the submission's own runs where it was graded;
     # None for grades stored before it was recorded.
     check: CheckOutcome | None = None
+    # The variant graded (rubric.variants.Variant.id); None: the lesson's shipped parameters.
+    variant: str | None = None
 
     def item(self, item_id: str) -> ItemGrade:
         return next(i for i in self.items if i.id == item_id)
@@ -102,19 +110,27 @@ def case_name(sheet: PredictionSheet, role_or_case: str) -> str:
     return role_or_case
 
 
-def cases_to_run(sheet: PredictionSheet, rubric: Rubric | None = None) -> list:
-    """Every case grading needs: lesson cases not replaced by the sheet, plus its configs that obey the one-factor
-    rule (a config that breaks it is graded as such, never run as if valid). Unique names.
+def lesson_run_specs(variant: Variant | None = None) -> list:
+    """The lesson runs every sheet on `variant` is graded on (LESSON_RUNS, the variant's cases): what a pool measures
+    ahead of time, so that each student on the variant reuses them (the lab check reads a subset: CHECK_CASES)."""
+    cases = lesson_cases(variant)
+    return [cases[name] for name in LESSON_RUNS]
+
+
+def cases_to_run(sheet: PredictionSheet, rubric: Rubric | None = None, variant: Variant | None = None) -> list:
+    """Every case grading needs: lesson cases not replaced by the sheet (the variant's, when given), plus its configs
+    that obey the one-factor rule (a config that breaks it is graded as such, never run as if valid). Unique names.
 
     A sheet of concept checkpoints only submits no config, so it needs the lesson's own cases alone: the same runs for
     every student. The API grades such a sheet at once where all are stored (grader.assignments.grade_now) and
     queues them only while one was never measured."""
     rubric = rubric or load_rubric(sheet.lesson)
-    findings = one_factor_findings(sheet, rubric)
+    findings = one_factor_findings(sheet, rubric, variant)
+    cases = lesson_cases(variant)
     specs = {}
     for name in LESSON_RUNS:
         if name not in sheet.configs.submitted():
-            specs[name] = BASELINE_CASES[name]
+            specs[name] = cases[name]
     for role, spec in sheet.configs.submitted().items():
         if findings[role].ok:
             run_name = case_name(sheet, role)
@@ -128,8 +144,12 @@ class Context:
     """What a check may read: the sheet, its item's reviewed tolerances, and the measured runs by role."""
 
     def __init__(self, sheet: PredictionSheet, results: Mapping[str, CaseResult], rubric: Rubric,
-                 findings: Mapping[str, ConfigFinding]):
+                 findings: Mapping[str, ConfigFinding], variant: Variant | None = None):
         self.sheet, self.results, self.rubric, self.findings = sheet, results, rubric, findings
+        self.variant = variant
+        # The lesson's case table and parameters this sheet is graded under: its variant's, else the shipped ones.
+        self.cases: CaseSet = lesson_cases(variant)
+        self.parameters = complete_parameters(variant.parameters if variant else None)
         self.item: Item | None = None
 
     def tol(self, name: str) -> float:
@@ -139,7 +159,7 @@ class Context:
         return self.rubric.tolerances[name].value
 
     def spec(self, role: str):
-        return self.sheet.spec_for(role)
+        return self.sheet.spec_for(role, self.cases)
 
     def run_name(self, role: str) -> str:
         return case_name(self.sheet, role)
@@ -156,6 +176,11 @@ class Context:
             raise NotMeasured(f"case {name} ({role}) {result.status} on {result.backend}: {result.error}")
         if result.metrics is None:
             raise NotMeasured(f"case {name} ({role}) has no stored metrics")
+        if self.variant is not None and name in self.cases:
+            other = variant_mismatch(self.cases[name], result.spec)
+            if other:
+                raise NotMeasured(f"case {name} ({role}) was measured with other parameters than variant "
+                                  f"{self.variant.id}: {other}")
         return result
 
     def backend(self, role: str) -> str:
@@ -179,6 +204,16 @@ class Context:
             return fn(*args)
         except (NotMeasured, ConfigViolation):
             return None
+
+
+# Where the variant's case and a measured lesson run may differ: where and how it ran, and its label (not physics).
+EXECUTION_FIELDS = {"backend", "precision", "render", "name"}
+
+
+def variant_mismatch(expected, measured) -> str:
+    """The physical inputs in which a measured lesson run differs from the variant's case ('' when none)."""
+    changes = [c for c in field_changes(expected, measured) if c.field not in EXECUTION_FIELDS]
+    return ", ".join(f"{c.field} {c.baseline} expected, {c.config} measured" for c in changes)
 
 
 # Each rubric item names its scoring rule in its `check` field (the key stays: a version's content hash covers it).
@@ -250,7 +285,8 @@ def _grade_item(ctx: Context, item: Item) -> ItemGrade:
     feedback.append(f"Verdict: {_VERDICT_TEXT[outcome.verdict]}.")
     counted = outcome.verdict != "inconclusive"
     return ItemGrade(
-        id=item.id, question=item.question, part=item.part, kind=item.kind, points=item.points,
+        # Under a variant the question names the variant's numbers (rubric.variants.texts); else the rubric's text.
+        id=item.id, question=item_question(item, ctx.variant), part=item.part, kind=item.kind, points=item.points,
         score=item.points if outcome.verdict == "credit" else 0.0,
         max_score=item.points if counted else 0.0,
         verdict=outcome.verdict, prediction=_prediction(answer), expected=outcome.expected, measured=outcome.measured,
@@ -275,16 +311,20 @@ def ensure_gradable(rubric: Rubric) -> None:
             f"grading needs v{first} or later")
 
 
-def grade_sheet(sheet: PredictionSheet, results: Mapping[str, CaseResult], rubric: Rubric | None = None) -> GradeReport:
+def grade_sheet(sheet: PredictionSheet, results: Mapping[str, CaseResult], rubric: Rubric | None = None,
+                variant: Variant | None = None) -> GradeReport:
     """Grade every rubric item the sheet answers (all, or one assignment's part: the other items neither score nor
-    count in max_total); failed or missing results give visible not_measured items, never a crash or credit."""
+    count in max_total); failed or missing results give visible not_measured items, never a crash or credit.
+
+    `variant`: the student's own lab (its lesson runs must have been measured with its parameters); None grades on the
+    lesson's shipped cases."""
     rubric = rubric or load_rubric(sheet.lesson)
     if rubric.lesson != sheet.lesson:
         raise ValueError(f"rubric is for lesson {rubric.lesson}, the sheet for {sheet.lesson}")
     ensure_gradable(rubric)
     results = gradable(dict(results), rubric)  # provenance violations: kept, never graded, the reason shown
-    findings = one_factor_findings(sheet, rubric)
-    ctx = Context(sheet, results, rubric, findings)
+    findings = one_factor_findings(sheet, rubric, variant)
+    ctx = Context(sheet, results, rubric, findings, variant)
     held = set(answered(sheet))
     items = [_grade_item(ctx, item) for item in rubric.items if item.id in held]
     return GradeReport(
@@ -293,4 +333,5 @@ def grade_sheet(sheet: PredictionSheet, results: Mapping[str, CaseResult], rubri
         total=sum(i.score for i in items), max_total=sum(i.max_score for i in items),
         complete=all(i.verdict != "not_measured" for i in items),
         items=items, config_findings=[f.describe() for f in findings.values()],
+        variant=variant.id if variant is not None else None,
     )
