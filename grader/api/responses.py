@@ -6,7 +6,7 @@ still answers its errors in JSON, and says so (`csv_ok` documents the success; t
 
 from __future__ import annotations
 
-from grader.schemas import ErrorBody
+from grader.core.schemas import ErrorBody
 
 DESCRIPTIONS = {
     401: "Missing, malformed, unknown or revoked bearer token",

@@ -8,7 +8,7 @@ from sqlalchemy.orm import Session
 
 from grader.core.states import CaseRunState, values
 from grader.core.models import Grade, Submission, User
-from grader.schemas import CaseRunPublic, GradeHistoryEntry, GradePublic, Progress, SubmissionPublic
+from grader.core.schemas import CaseRunPublic, GradeHistoryEntry, GradePublic, Progress, SubmissionPublic
 from grader.services.submissions.visibility import GradeView, attempt_standing, grade_view
 
 

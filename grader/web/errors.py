@@ -1,5 +1,5 @@
 """The one place errors become answers. Under /v1 every error is JSON {detail, errors: [{field, rule}]}
-(grader.schemas.ErrorBody); bodies are checked by grader.web.bodies before any handler runs. A domain error
+(grader.core.schemas.ErrorBody); bodies are checked by grader.web.bodies before any handler runs. A domain error
 (grader.services.errors) raised for a page becomes that page's HTML answer instead (`page_error`, from grader.pages)."""
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ from sqlalchemy import text
 from grader.web.deps import SessionDep
 from grader.core.db import new_session
 from grader.ops import StatusCollector
-from grader.schemas import Health
+from grader.core.schemas import Health
 
 router = APIRouter(tags=["health"])
 

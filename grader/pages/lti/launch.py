@@ -192,7 +192,7 @@ def launch(request: Request, session: SessionDep, id_token: str = Form(""), stat
     else:
         # A page, not a redirect: the session cookie is SameSite=Strict, and a redirect that a cross-site POST
         # started would arrive without it; this page's own navigation is same-site.
-        response = TEMPLATES.TemplateResponse(request, "lti/lti_launched.html",
+        response = TEMPLATES.TemplateResponse(request, "lti/launched.html",
                                               {"user": landing.user, "target": _landing_url(landing)})
     set_session_cookie(response, request, secret)
     response.delete_cookie(STATE_COOKIE_PREFIX + state, path="/lti/")
@@ -218,7 +218,7 @@ def _platform_policy(url: str) -> str:
 
 def _deep_link_page(request: Request, session, user, state: str) -> Response:
     row = lti.pending_deep_link(session=session, state=state)
-    response = TEMPLATES.TemplateResponse(request, "lti/lti_deep_link.html", {
+    response = TEMPLATES.TemplateResponse(request, "lti/deep_link.html", {
         "user": user, "state": state, "assignments": assignments.of_course(session=session, course=user.course)})
     response.headers["Content-Security-Policy"] = _platform_policy(row.deep_link["deep_link_return_url"])
     return response
@@ -233,7 +233,7 @@ def deep_link(request: Request, session: SessionDep, state: str = Form(""), assi
     return_url, token = lti.answer_deep_link(session=session, row=row, assignment_id=assignment_id,
                                              launch_url=str(request.url_for("lti_launch")))
     session.commit()
-    response = TEMPLATES.TemplateResponse(request, "lti/lti_deep_link_return.html", {
+    response = TEMPLATES.TemplateResponse(request, "lti/deep_link_return.html", {
         "user": None, "return_url": return_url, "token": token})
     response.headers["Content-Security-Policy"] = _platform_policy(return_url)
     return response

@@ -23,7 +23,7 @@ def _report_url(request: Request) -> str:
 @router.get("/courses/{course}/lti", response_class=HTMLResponse)
 def lti_page(request: Request, row: InstructorCourse, session: SessionDep, user: SignedIn, retried: int = -1):
     overview = lti_outbox.course_overview(session=session, course=row)
-    return TEMPLATES.TemplateResponse(request, "lti/lti_admin.html", {
+    return TEMPLATES.TemplateResponse(request, "lti/outbox.html", {
         "user": user, "course": row.name, "overview": overview, "retried": retried,
         "at": lambda when: iso(when, row.timezone) if when else ""})
 

@@ -23,5 +23,5 @@ def course_page(request: Request, course: str, session: SessionDep, user: Signed
         raise NotFound(f"page of course {course}")
     if access.is_staff(user):
         return RedirectResponse(f"/courses/{course}/dashboard", status_code=status.HTTP_303_SEE_OTHER)
-    return TEMPLATES.TemplateResponse(request, "reports/course.html", {
+    return TEMPLATES.TemplateResponse(request, "reports/course_page.html", {
         "user": user, "lines": student_course(session=session, student=user)})

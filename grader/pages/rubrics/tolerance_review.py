@@ -29,7 +29,7 @@ def _base(course: str, lesson: str, version: str) -> str:
 def _review_page(request: Request, session, row, user, lesson: str, version: str, *, error: DomainError | None = None,
                  note: str = "", code: int = 200) -> HTMLResponse:
     data = review.version_review(session, course=row, lesson=lesson, version=version)
-    return TEMPLATES.TemplateResponse(request, "rubrics/rubric_review.html", {
+    return TEMPLATES.TemplateResponse(request, "rubrics/tolerance_review.html", {
         "user": user, "r": data, "base": _base(row.name, lesson, version), "error": error, "note": note},
         status_code=code)
 
@@ -58,7 +58,7 @@ async def rubric_signoff(request: Request, row: InstructorCourse, session: Sessi
 def _draft_page(request: Request, user, course: str, draft: review.Draft, *, error: DomainError | None = None,
                 code: int = 200) -> HTMLResponse:
     errors = {e["field"]: e["rule"] for e in (error.errors if error else [])}
-    return TEMPLATES.TemplateResponse(request, "rubrics/rubric_draft.html", {
+    return TEMPLATES.TemplateResponse(request, "rubrics/tolerance_review_draft.html", {
         "user": user, "course": course, "d": draft, "error": error, "errors": errors,
         "action": f"{_base(course, draft.lesson, draft.base_version)}/draft"}, status_code=code)
 

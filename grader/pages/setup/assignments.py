@@ -28,7 +28,7 @@ def _page(request: Request, session, user, assignment: Assignment, *, section: s
           status_code: int = status.HTTP_200_OK) -> HTMLResponse:
     """The page; a refused form's errors (and what was typed) are shown in its `section`."""
     items = [(i, visibility_of(assignment, i)) for i in logic.item_ids(assignment.lesson, assignment.part)]
-    return TEMPLATES.TemplateResponse(request, "setup/assignment.html", {
+    return TEMPLATES.TemplateResponse(request, "setup/assignments.html", {
         "user": user, "a": assignment, "items": items,
         "students": logic.students_view(session=session, assignment=assignment),
         "changes": course_changes.of_course(session=session, course=assignment.course, assignment=assignment),

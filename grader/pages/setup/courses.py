@@ -167,7 +167,7 @@ def setup_page(request: Request, session, user, course: Course, *, section: str 
                errors: list[dict[str, str]] | None = None, posted: dict[str, str] | None = None,
                status_code: int = status.HTTP_200_OK) -> HTMLResponse:
     """The set-up page; a refused form's errors (and what was typed) are shown in its `section`."""
-    return TEMPLATES.TemplateResponse(request, "setup/setup.html", {
+    return TEMPLATES.TemplateResponse(request, "setup/courses.html", {
         "user": user, "course": course, "assignments": logic.of_course(session=session, course=course),
         "students": roster.students(session=session, course=course),
         "registrations": lti.course_registrations(session=session, course=course),

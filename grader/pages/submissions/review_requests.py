@@ -43,7 +43,7 @@ def _score(text: str, *, required: bool) -> float | None:
 
 def _queue(request: Request, session, user, course: Course, *, answered: int | None = None, failed: int | None = None,
            error: Invalid | Conflict | None = None, status_code: int = 200) -> HTMLResponse:
-    return TEMPLATES.TemplateResponse(request, "submissions/reviews.html", {
+    return TEMPLATES.TemplateResponse(request, "submissions/review_requests.html", {
         "user": user, "course": course.name,
         "open": review_requests.course_requests(session=session, course_id=course.id, state="open"),
         "answered": review_requests.course_requests(session=session, course_id=course.id, state="answered"),

@@ -14,7 +14,7 @@ from sqlalchemy.orm import Session
 from grader.core.audit import create_audit_rerun
 from grader.core.states import Backend, CaseRunPurpose, CaseRunState, ExecutionMode, Precision
 from grader.core.models import AuditEntry, CaseRun, Submission, User
-from grader.schemas import as_utc
+from grader.core.schemas import as_utc
 from grader.services.identity import quotas
 from grader.services.identity.access import MAX_ID, require_staff
 from grader.services.errors import Conflict, NotFound

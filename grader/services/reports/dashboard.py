@@ -23,7 +23,7 @@ from sqlalchemy.orm import Session, selectinload
 from grader.core import lifecycle
 from grader.core.states import CaseRunState, SubmissionState
 from grader.core.models import Assignment, CaseRun, Course, Grade, Submission, User, utcnow
-from grader.schemas import CountedGradePublic, UtcDateTime
+from grader.core.schemas import CountedGradePublic, UtcDateTime
 from grader.services.identity.access import MAX_ID, require_instructor
 from grader.services.setup.assignments import counted_grades, counted_public
 from grader.services.errors import Conflict, NotFound

@@ -29,7 +29,7 @@ from grader.core.lab_check import lab_check
 from grader.core.lifecycle import stored_result
 from grader.core.rubrics import course_version, course_versions, get_version, stored_version
 from grader.core.models import Course, Grade, Regrade, RubricVersion, Submission, User, utcnow
-from grader.schemas import UtcDateTime
+from grader.core.schemas import UtcDateTime
 from grader.services.errors import Conflict, Invalid, NotFound
 from grader.services.submissions.overrides import current_overrides, overridden_report
 from grader.core.settings import settings

@@ -23,7 +23,7 @@ from grader.core import rubrics as store
 from grader.core.audit import spec_key, variant
 from grader.core.states import CaseRunState
 from grader.core.models import Assignment, AuditEntry, CaseRun, Course, RubricSignoff, RubricVersion, Submission, User, utcnow
-from grader.schemas import UtcDateTime
+from grader.core.schemas import UtcDateTime
 from grader.services.identity.access import require_instructor
 from grader.services.errors import Conflict, Invalid, NotFound, field_errors
 from grader.services.rubrics.regrade import LESSON_PATTERN

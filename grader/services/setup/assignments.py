@@ -19,7 +19,7 @@ from grader.core.grades import current_grade
 from grader.core.states import AssignmentParts, CountedAttempt, Role, Visibility
 from grader.core.timezones import iso, local
 from grader.core.models import Assignment, Course, Extension, Grade, Submission, User, utcnow
-from grader.schemas import AssignmentCreate, CountedGradePublic, ExtensionCreate
+from grader.core.schemas import AssignmentCreate, CountedGradePublic, ExtensionCreate
 from grader.services.setup import course_changes
 from grader.services.identity.access import MAX_ID, require_course_instructor
 from grader.services.setup.course_changes import ChangeKind
@@ -166,7 +166,7 @@ def counted_grades(*, session: Session, assignment: Assignment) -> list[Counted]
 
 
 def counted_public(c: Counted):
-    """A counted grade as the API shows it (grader.schemas.CountedGradePublic)."""
+    """A counted grade as the API shows it (grader.core.schemas.CountedGradePublic)."""
 
     return CountedGradePublic(student=c.submission.student.name, submission_id=c.submission.id,
                               attempt=c.submission.attempt, submitted_at=c.submission.created_at,
@@ -224,7 +224,7 @@ def _validated(model: type[BaseModel], raw: dict, detail: str) -> dict:
 
 
 def checked(raw: dict) -> dict:
-    """An assignment's fields checked as the API checks a body (grader.schemas.AssignmentCreate: the same rules, the
+    """An assignment's fields checked as the API checks a body (grader.core.schemas.AssignmentCreate: the same rules, the
     same messages, each naming its field) and by create's own rule on per-item visibility: every error at once, as
     Invalid. For callers that do not come through the API's body validation (the set-up pages)."""
     try:
@@ -240,12 +240,12 @@ def checked(raw: dict) -> dict:
 
 
 def checked_extension(raw: dict) -> dict:
-    """An extension's student and dates checked as the API checks its body (grader.schemas.ExtensionCreate)."""
+    """An extension's student and dates checked as the API checks its body (grader.core.schemas.ExtensionCreate)."""
     return _validated(ExtensionCreate, raw, "invalid extension")
 
 
 def create(*, session: Session, course: Course, user: User, fields: dict) -> Assignment:
-    """Store a new assignment of the course (fields validated by grader.schemas.AssignmentCreate); Invalid naming
+    """Store a new assignment of the course (fields validated by grader.core.schemas.AssignmentCreate); Invalid naming
     each per-item visibility that names no item of the assignment. Recorded with who created it. NotFound outside
     the course, Forbidden for anyone but its instructors (checked here, whichever door called). Commits."""
     require_course_instructor(user, course.id, action="create an assignment", thing=f"course {course.name!r}")

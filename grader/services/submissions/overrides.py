@@ -26,7 +26,7 @@ from grader.core.overrides import current_overrides, measured_item, overridden_r
 from grader.core.lti_outbox import scores_changed
 from grader.core.grades import current_grade
 from grader.core.models import Grade, Override, Submission, User, utcnow
-from grader.schemas import UtcDateTime
+from grader.core.schemas import UtcDateTime
 from grader.services.identity.access import require_instructor
 from grader.services.errors import Conflict, Invalid, NotFound
 

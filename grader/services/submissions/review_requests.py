@@ -16,7 +16,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from grader.core.models import ReviewRequest, Submission, User, utcnow
-from grader.schemas import UtcDateTime
+from grader.core.schemas import UtcDateTime
 from grader.services.identity import quotas
 from grader.services.identity.access import MAX_ID, require_instructor
 from grader.services.errors import Conflict, Forbidden, Invalid, NotFound

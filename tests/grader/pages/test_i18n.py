@@ -25,10 +25,11 @@ from tests.grader.pages.test_sheet_form import form_fields, import_yaml
 ROOT = Path(__file__).resolve().parents[3]
 TEMPLATES = ROOT / "grader" / "templates"
 # Every template a student's pages render (their own, included and imported ones).
-STUDENT_TEMPLATES = ["base.html", "reports/course.html", "submissions/sheet_form.html", "submissions/submit_confirm.html", "submissions/progress.html",
-                     "submissions/_progress_live.html", "submissions/report.html", "submissions/_attempt.html", "submissions/_grade_history.html",
-                     "submissions/_item_review.html", "submissions/submissions.html", "identity/sign_in.html", "identity/sign_in_link.html", "error.html",
-                     "not_found.html", "lti/lti_launched.html"]
+STUDENT_TEMPLATES = ["base.html", "reports/course_page.html", "submissions/sheet_form.html",
+                     "submissions/submit_confirm.html", "submissions/progress.html", "submissions/_progress_live.html",
+                     "submissions/report.html", "submissions/_attempt.html", "submissions/_grade_history.html",
+                     "submissions/_item_review.html", "submissions/submissions.html", "identity/sign_in.html",
+                     "identity/sign_in_link.html", "error.html", "not_found.html", "lti/launched.html"]
 ZH = {"Accept-Language": "zh-CN,zh;q=0.9,en;q=0.8"}
 
 
@@ -112,9 +113,9 @@ def test_every_msgid_of_every_page_and_module_has_a_chinese_translation():
     """Staff pages too (dashboard, set-up, assignment forms, rubric review and draft, regrade, reviews, LTI admin):
     every msgid extracted from any template or module of grader/ has a zh msgstr (not absent, empty or fuzzy)."""
     used = extracted_msgids()
-    staff = {"reports/dashboard.html", "setup/setup.html", "setup/assignment.html", "setup/assignment_form.html", "rubrics/rubrics.html",
-             "rubrics/rubric_review.html", "rubrics/rubric_draft.html", "rubrics/regrade.html", "submissions/reviews.html", "lti/lti_admin.html",
-             "setup/roster_issued.html"}
+    staff = {"reports/dashboard.html", "setup/courses.html", "setup/assignments.html", "setup/assignment_form.html",
+             "rubrics/rubrics.html", "rubrics/tolerance_review.html", "rubrics/tolerance_review_draft.html",
+             "rubrics/regrade.html", "submissions/review_requests.html", "lti/outbox.html", "setup/roster_issued.html"}
     # templates by their path under grader/templates (one folder per context), modules by their file name
     names = {str(Path(name).relative_to("grader/templates")) if name.startswith("grader/templates/") else Path(name).name
              for name in used}
@@ -138,7 +139,7 @@ def test_an_emptied_staff_translation_is_caught(tmp_path, monkeypatch):
     i18n.translations.cache_clear()
     try:
         assert untranslated_in(extracted_msgids(), i18n.known("zh")) == {
-            "grader/templates/setup/setup.html": ["Set the time zone"]}
+            "grader/templates/setup/courses.html": ["Set the time zone"]}
     finally:
         monkeypatch.undo()
         i18n.translations.cache_clear()

@@ -1,19 +1,13 @@
 """Revoking a student's access: an instructor ends every API token and page session of a student of their course."""
 
 from fastapi import APIRouter
-from pydantic import BaseModel
 
+from grader.api.schemas import TokensRevoked
 from grader.web.deps import InstructorCourse, Name, SessionDep
 from grader.api.responses import errors
 from grader.services.identity import accounts
 
 router = APIRouter(prefix="/courses", tags=["courses"], responses=errors(401, 403, 404, 422))
-
-
-class TokensRevoked(BaseModel):
-    student: str
-    tokens_revoked: int
-    sessions_revoked: int
 
 
 @router.post("/{course}/students/{name}/tokens/revoke", response_model=TokensRevoked)

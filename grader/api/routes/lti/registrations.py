@@ -3,11 +3,10 @@ assignment's counted scores sent to the LMS gradebooks, and the roster synced fr
 
 from __future__ import annotations
 
-from datetime import datetime
 
 from fastapi import APIRouter, Request, status
-from pydantic import BaseModel, Field
 
+from grader.api.schemas import LtiRegistrationCreate, LtiRegistrationPublic, RosterSyncPublic, ScoreSentPublic
 from grader.web.deps import CurrentUser, InstructorCourse, SessionDep
 from grader.api.responses import errors
 from grader.core.models import LtiRegistration
@@ -15,29 +14,6 @@ from grader.services.setup import assignments
 from grader.services.lti import launch as lti
 
 router = APIRouter(prefix="/courses/{course}/lti", tags=["lti"], responses=errors(401, 403, 404, 422))
-
-
-class LtiRegistrationCreate(BaseModel):
-    """A platform (an LMS) that may launch this tool into the course, with the values its set-up page shows."""
-
-    issuer: str = Field(max_length=255, description="The platform's issuer (iss)")
-    client_id: str = Field(max_length=255, description="The client id the platform gave this tool")
-    deployment_ids: list[str] = Field(min_length=1, max_length=100, description="Deployment ids it launches from")
-    auth_login_url: str = Field(max_length=2000, description="The platform's OIDC authorization endpoint")
-    auth_token_url: str = Field(max_length=2000, description="The platform's OAuth2 token endpoint")
-    key_set_url: str = Field(max_length=2000, description="The platform's JWKS URL")
-
-
-class LtiRegistrationPublic(BaseModel):
-    id: int
-    course: str
-    issuer: str
-    client_id: str
-    deployment_ids: list[str]
-    auth_login_url: str
-    auth_token_url: str
-    key_set_url: str
-    created_at: datetime
 
 
 def registration_public(row: LtiRegistration) -> LtiRegistrationPublic:
@@ -64,14 +40,6 @@ def list_registrations(course: InstructorCourse, session: SessionDep):
     return [registration_public(row) for row in lti.course_registrations(session=session, course=course)]
 
 
-class ScoreSentPublic(BaseModel):
-    student: str
-    context: str = Field(description="The LMS course (launch context id)")
-    status: str = Field(description="sent | unchanged | failed | withheld (an item is still withheld from the student)")
-    score: float | None
-    error: str | None
-
-
 @router.post("/assignments/{assignment_id}/scores", response_model=list[ScoreSentPublic])
 def send_scores(course: InstructorCourse, assignment_id: int, request: Request, session: SessionDep,
                 user: CurrentUser):
@@ -82,13 +50,6 @@ def send_scores(course: InstructorCourse, assignment_id: int, request: Request, 
                            report_url=str(request.base_url).rstrip("/") + "/submissions/{id}")
     session.commit()
     return [ScoreSentPublic(**vars(s)) for s in sent]
-
-
-class RosterSyncPublic(BaseModel):
-    added: list[str]
-    updated: list[str]
-    dropped: list[str] = Field(description="No longer active in the LMS: kept here with their submissions")
-    unchanged: int
 
 
 @router.post("/roster-sync", response_model=RosterSyncPublic, responses=errors(409))

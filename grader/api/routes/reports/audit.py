@@ -3,42 +3,20 @@ export, and audit re-runs of a stored case run on another backend, precision or 
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, Query, status
 from fastapi.responses import PlainTextResponse, Response
-from pydantic import BaseModel, ConfigDict
 
+from grader.api.schemas import AuditEntryPublic
 from grader import dispatch
 from grader.web.deps import RowId, SessionDep, StaffUser
 from grader.api.responses import csv_ok, errors
-from grader.schemas import CaseRunPublic, UtcDateTime
+from grader.core.schemas import CaseRunPublic
 from grader.services.reports import audit
 from grader.services.reports.audit import AuditRerunRequest, Filters
 
 router = APIRouter(tags=["audit"], responses=errors(401, 403, 422))
-
-
-class AuditEntryPublic(BaseModel):
-    model_config = ConfigDict(from_attributes=True)
-
-    id: int
-    created_at: UtcDateTime
-    lesson: str
-    case: str
-    spec_key: str
-    spec: dict[str, Any]
-    left_case_run_id: int
-    right_case_run_id: int | None
-    left_variant: str
-    right_variant: str
-    left_provenance: dict[str, Any] | None
-    right_provenance: dict[str, Any] | None
-    classification: str
-    summary: str
-    comparison: dict[str, Any] | None
-    figures: list[str]
-    requested_by_id: int | None
 
 
 FilterDep = Annotated[Filters, Query()]

@@ -9,19 +9,18 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, HTTPException, Path, Query, status
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import ValidationError
 from sqlalchemy.exc import IntegrityError
 
+from grader.api.schemas import RegradeRequest, RubricVersionPublic
 from grader.web.deps import CurrentUser, SessionDep, StaffCourse, StaffUser
 from grader.web.errors import error
 from grader.api.responses import errors
 from grader.core import rubrics as store
 from grader.core.models import RubricVersion
-from grader.schemas import UtcDateTime
 from grader.services.identity import access
 from grader.services.errors import field_errors
 from grader.services.rubrics.regrade import (
-    HASH_PATTERN,
     LESSON_PATTERN,
     RegradePreview,
     RegradeRecord,
@@ -39,25 +38,6 @@ LESSON, VERSION = LESSON_PATTERN, VERSION_PATTERN
 CONFLICT = errors(409, _409="Refused by rubric governance, an archived version, content other than the preview's, "
                              "or a concurrent regrade")
 router = APIRouter(tags=["rubrics"], responses=errors(401, 403, 422))
-
-
-class RubricVersionPublic(BaseModel):
-    lesson: str
-    version: str
-    content_hash: str
-    source: str
-    published_by: str | None
-    published_at: UtcDateTime
-    review: dict[str, Any]
-
-
-class RegradeRequest(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
-    lesson: Annotated[str, Field(pattern=LESSON)] = "L03"
-    version: Annotated[str, Field(pattern=VERSION, max_length=32)]
-    # The preview's content_hash: the commit is refused (409) if the version's content is not what was previewed.
-    content_hash: Annotated[str, Field(pattern=HASH_PATTERN)]
 
 
 def _public(row: RubricVersion) -> RubricVersionPublic:

@@ -12,7 +12,7 @@ from grader.services.setup import assignments as logic
 from grader.services.reports import exports
 from grader.api.responses import csv_ok, errors
 from grader.core.models import Assignment
-from grader.schemas import (AssignmentCreate, AssignmentPublic, CountedGradePublic, ExtensionCreate,
+from grader.core.schemas import (AssignmentCreate, AssignmentPublic, CountedGradePublic, ExtensionCreate,
                             ExtensionPublic)
 
 router = APIRouter(tags=["assignments"], responses=errors(401, 404, 422))

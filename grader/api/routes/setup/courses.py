@@ -7,7 +7,7 @@ from grader.web.deps import InstructorCourse, MemberCourse, Name, SessionDep, St
 from grader.api.responses import errors
 from grader.api.views import submission_public
 from grader.core.models import Course
-from grader.schemas import (CoursePublic, CourseUpdate, RosterEntry, RosterImport, SignInLinkPublic,
+from grader.core.schemas import (CoursePublic, CourseUpdate, RosterEntry, RosterImport, SignInLinkPublic,
                             SubmissionPublic)
 from grader.services.setup import courses, roster
 from grader.services.identity import sign_in_links

@@ -5,7 +5,7 @@ from fastapi import APIRouter, status
 from grader import dispatch
 from grader.web.deps import CurrentUser, RowId, SessionDep
 from grader.api.responses import errors
-from grader.schemas import CaseRunPublic
+from grader.core.schemas import CaseRunPublic
 from grader.services.reports.dashboard import resend_case_run
 
 router = APIRouter(prefix="/case-runs", tags=["case runs"], responses=errors(401, 403, 404, 422))

@@ -10,7 +10,7 @@ from pydantic import Field
 
 from grader.web.deps import CurrentUser, InstructorUser, RowId, SessionDep, StaffCourse, StaffUser, SubmissionDep
 from grader.api.responses import errors
-from grader.schemas import Strict
+from grader.core.schemas import Strict
 from grader.services.submissions import overrides, review_requests
 from grader.services.submissions.overrides import MAX_COMMENT, OverridePublic
 from grader.services.submissions.review_requests import MAX_MESSAGE, ReviewRequestPublic

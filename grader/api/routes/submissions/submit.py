@@ -12,7 +12,7 @@ from grader.api.responses import errors
 from grader.api.views import case_runs_public, grade_history_public, grade_public, submission_public
 from grader.core.grades import grade_history
 from grader.core.models import Event
-from grader.schemas import CaseRunPublic, EventPublic, GradeHistoryEntry, GradePublic, SubmissionCreate, SubmissionPublic
+from grader.core.schemas import CaseRunPublic, EventPublic, GradeHistoryEntry, GradePublic, SubmissionCreate, SubmissionPublic
 from grader.services.submissions import submit as submissions
 from grader.services.errors import Conflict
 from grader.services.submissions.visibility import GradeView, attempt_standing, grade_view
