@@ -104,8 +104,8 @@ def test_the_score_is_stored_first_and_the_lab_check_joins_it_once(api, measured
     states = _states(submission_id)
     assert states.count("graded") == 1 and states.count("lab-check") == 1
     assert states.index("graded") < states.index("lab-check"), states
-    # The only "figures" event is the reconciler's re-send note (grader/reconcile.py); completing draws none.
-    assert states[-2:] == ["figures", "lab-check"] and states.count("figures") == 1, states
+    # The only "completing" event is the reconciler's re-send note (grader/reconcile.py).
+    assert states[-2:] == ["completing", "lab-check"] and states.count("completing") == 1, states
 
     state = api.client.get(f"/v1/submissions/{submission_id}", headers=api.as_("alice")).json()
     assert state["report_complete"] is True and state["total"] == total
