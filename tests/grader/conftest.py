@@ -36,7 +36,7 @@ _TEMPLATES: dict[str, Path] = {}
 
 def migrated(url: str) -> None:
     """The database at `url` at the newest revision. A SQLite file is a copy of one migrated once per test process
-    (0.4 ms against ~2 s for the 23 migrations, run by ~560 tests); a server's database is migrated as it is.
+    (0.4 ms against ~2 s for the 22 migrations, run by ~560 tests); a server's database is migrated as it is.
     tests/grader/test_storage.py migrates for real, step by step, and compares the schema with the tables."""
     from grader.core import db
 
