@@ -17,7 +17,7 @@ from rubric import CaseResult, ContactCase, FrictionCase
 from rubric.check import verdict_line
 
 NOT_STOPPED = "not stopped within the measured window"
-REPORT_NAME = "submissions/report.html"
+REPORT_NAME = "report.html"
 
 # ------------------------------------------------------------------------------------------- rows (shared data)
 

@@ -103,7 +103,7 @@ class Client:
 
     def wait(self, submission_id: int, *, poll_s: float = 1.0, on_progress: Callable[[dict], None] | None = None,
              timeout_s: float | None = None, complete: bool = True) -> dict:
-        """Poll until failed, or graded with its report complete (figures and lab check stored; `complete=False`:
+        """Poll until failed, or graded with its report complete (its lab check stored; `complete=False`:
         graded is enough); on_progress gets every status body."""
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
         while True:

@@ -74,15 +74,15 @@ def reconcile_forever(stop: threading.Event) -> None:
 
 
 def follow(client, submission_id: int, total: int) -> dict:
-    """Progress bar until failed, or graded with its figures and lab check stored."""
+    """Progress bar until failed, or graded with its lab check stored."""
     with click.progressbar(length=total, label="measuring cases", show_pos=True) as bar:
         shown = 0
 
         def update(state: dict) -> None:
             nonlocal shown
             finished = state["progress"][CaseRunState.DONE] + state["progress"][CaseRunState.FAILED]
-            drawing = state["status"] == SubmissionState.GRADED and state.get("report_complete") is False
-            bar.label = ("graded, drawing figures and the lab check" if drawing
+            completing = state["status"] == SubmissionState.GRADED and state.get("report_complete") is False
+            bar.label = ("graded, evaluating the lab check" if completing
                          else f"{state['status']:8s} {state['progress']['running']} running")
             bar.update(finished - shown)
             shown = finished

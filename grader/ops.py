@@ -28,7 +28,7 @@ class ServiceStatus(BaseModel):
     case_runs_by_state: dict[str, dict[str, int]]  # backend -> state -> count
     failures_by_reason: dict[str, int]
     stuck_case_runs: int
-    grades_drawing: int = 0  # current grades stored whose figures and lab check are not yet (worker.grading)
+    grades_completing: int = 0  # current grades stored whose lab check is not yet (worker.grading.complete_grade)
     lti_failing: int = 0  # assignments whose scores the LMS gradebook refused last (grader.services.lti.outbox)
     durations_s: list[float]  # wall time of every case measured (not reused), for the histogram
     broker_error: str | None = None
@@ -74,7 +74,7 @@ def service_status(session: Session, *, timeout_s: float = 1.0) -> ServiceStatus
     now = utcnow()
     stuck = session.scalar(select(func.count()).select_from(CaseRun).where(
         lifecycle.lease_expired(now) | lifecycle.queue_lease_expired(now)))
-    drawing = session.scalar(select(func.count()).select_from(Grade).where(
+    completing = session.scalar(select(func.count()).select_from(Grade).where(
         Grade.superseded_at.is_(None), Grade.completed_at.is_(None)))
     lti_failing = session.scalar(select(func.count()).select_from(LtiOutbox).where(LtiOutbox.last_error.is_not(None)))
     durations = session.scalars(select(CaseRun.wall_s).where(
@@ -84,7 +84,7 @@ def service_status(session: Session, *, timeout_s: float = 1.0) -> ServiceStatus
         submissions_by_state=dict(session.execute(
             select(Submission.status, func.count()).group_by(Submission.status)).all()),
         case_runs_by_state=by_state, failures_by_reason=dict(Counter(failure_reason(r) for r in failed)),
-        stuck_case_runs=stuck or 0, grades_drawing=drawing or 0, durations_s=[float(d) for d in durations],
+        stuck_case_runs=stuck or 0, grades_completing=completing or 0, durations_s=[float(d) for d in durations],
         lti_failing=lti_failing or 0, last_warm_up_s=last_warm_up,
         warmth=None if live is None else [{"worker": w.name, "queues": list(w.queues), "slots": w.slots,
                                            "warm": w.warm, "consuming": w.consuming, "warm_s": w.warm_s,
@@ -149,10 +149,11 @@ class StatusCollector:
         stuck = GaugeMetricFamily("grader_stuck_case_runs", "Case runs past their lease or queue lease")
         stuck.add_metric([], status.stuck_case_runs)
         yield stuck
-        drawing = GaugeMetricFamily("grader_grades_drawing", "Grades stored whose figures and lab check are being "
-                                                             "drawn (the score is final)")
-        drawing.add_metric([], status.grades_drawing)
-        yield drawing
+        # Named grader_grades_drawing before issue 32 (when completing a grade drew PNGs); removed (docs/operator.md).
+        completing = GaugeMetricFamily("grader_grades_completing", "Grades stored whose lab check is being evaluated "
+                                                                   "(the score is final)")
+        completing.add_metric([], status.grades_completing)
+        yield completing
         lti = GaugeMetricFamily("grader_lti_sends_failing", "Assignments whose last send to an LMS gradebook failed")
         lti.add_metric([], status.lti_failing)
         yield lti

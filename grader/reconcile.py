@@ -9,7 +9,8 @@
   running past its lease (worker crash, machine loss), or queued longer than queue_lease_s;
 - grading longer than the lease (grade task lost): the grade task is re-sent (grading is exactly-once anyway);
 - graded, but its lab check still missing a lease after the grade task was sent (the worker died while
-  drawing them): the grade task is re-sent, and completes the stored grade without grading again;
+  evaluating it): the grade task is re-sent (a "completing" event), and completes the stored grade without grading
+  again;
 - counted scores marked for the LMS gradebooks (grader.services.lti.outbox) are sent, once the marking commits or the
   backoff after a failed send is over, and withheld ones once their due date passes.
 A new delivery number makes every older message for that case run stale, so a late redelivery never runs twice.
@@ -115,7 +116,7 @@ def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=
                          Submission.grading_at < now - timedelta(seconds=grading_lease)))
     for submission in session.scalars(incomplete).all():
         submission.grading_at = utcnow()
-        session.add(Event(submission_id=submission.id, state="figures",
+        session.add(Event(submission_id=submission.id, state="completing",
                           detail="grade task re-sent: the grade is stored, its lab check is not"))
         resend.gradings.append(submission.id)
     session.commit()

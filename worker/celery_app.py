@@ -1,8 +1,8 @@
 """The Celery app: one queue per backend (cpu, rocm, cuda) plus `grade`; reliability options in one place.
 
-A grade's figures and lab check (`complete_grade`, drawn after the grade is stored) go on the cpu queue at the lowest
-priority (grader.core.lifecycle.FIGURES_PRIORITY): a CPU worker draws them when no case waits, so under a deadline's
-load the cases and grades of every submission come before any figure.
+A grade's lab check (`complete_grade`, evaluated after the grade is stored) goes on the cpu queue at the lowest
+priority (grader.core.lifecycle.COMPLETE_PRIORITY): a CPU worker evaluates it when no case waits, so under a
+deadline's load the cases and grades of every submission come before any lab check.
 
 Worker commands (one per queue), built by `worker_argv` for `grader worker` and the embedded service. Each worker has
 `worker_concurrency` case slots (prefork processes), each holding its own ~0.8 GB warm Genesis process: one per core
@@ -67,7 +67,7 @@ GRADE_QUEUE = "grade"
 RUN_TASK = "worker.tasks.run_case_run"
 GRADE_TASK = "worker.tasks.grade_submission"
 COMPLETE_TASK = "worker.tasks.complete_grade"
-FIGURES_QUEUE = "cpu"  # figures are CPU work, drawn behind the waiting case runs (see the module's docstring)
+COMPLETE_QUEUE = "cpu"  # a grade's lab check is CPU work, behind the waiting case runs (see the module's docstring)
 
 def worker_concurrency() -> int:
     """Case slots per worker: settings.worker_concurrency, or (0) one per core this process may run on (its CPU
@@ -85,7 +85,7 @@ app = Celery("grader", broker=settings.broker_url, include=["worker.tasks"])
 app.conf.update(
     task_queues=[Queue(name) for name in (*BACKEND_QUEUES, GRADE_QUEUE)],
     # A case run's queue is its requested backend, given explicitly at send time; grading has its own queue.
-    task_routes={GRADE_TASK: {"queue": GRADE_QUEUE}, COMPLETE_TASK: {"queue": FIGURES_QUEUE}},
+    task_routes={GRADE_TASK: {"queue": GRADE_QUEUE}, COMPLETE_TASK: {"queue": COMPLETE_QUEUE}},
     task_default_queue="cpu",
     task_create_missing_queues=False,
     # Ack only after the task finished; a worker process lost mid-case puts the message back.

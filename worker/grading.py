@@ -6,12 +6,12 @@
    is then complete. A student reads the score meanwhile and the report page says the check is coming. Its task
    waits on the cpu queue behind every case run (the lowest priority), so at a deadline the grades come first.
 
-No figure is drawn here: the report's charts are drawn in the reader's browser from the arrays stored in the
+Nothing is drawn here: the report's charts are drawn in the reader's browser from the arrays stored in the
 database (grader/services/reports/series.py), so any API host shows them and a report is complete right after its
-cases. Drawing the 18 PNGs cost more CPU than the simulation (docs/benchmark.md, `figures`); the PNG figures
-(worker.figures) remain for the command line's offline report (`grader check`).
+cases. Drawing them as 18 PNGs cost more CPU than the simulation (docs/benchmark.md, issue 24); the PNGs
+(worker/figures) remain for the command line's offline report (`grader check`).
 
-Both are idempotent: a re-sent grade task (a worker killed while drawing; the reconciler re-sends it for a grade
+Both are idempotent: a re-sent grade task (a worker killed while completing; the reconciler re-sends it for a grade
 left incomplete) completes what is missing and never grades twice. State changes go through
 grader.core.lifecycle.
 """
@@ -35,7 +35,7 @@ from grader.core.states import SubmissionState
 def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
     """Grade a submission in state 'grading' exactly once; None if it is not (or no longer) waiting for a grade.
 
-    The grade is stored without its figures and lab check (completed_at NULL): `complete_grade` adds them."""
+    The grade is stored without its lab check (completed_at NULL): `complete_grade` adds it."""
     submission = session.get(Submission, submission_id)
     if submission is None or submission.status != SubmissionState.GRADING:
         return None
@@ -95,5 +95,4 @@ def _check(submission: Submission, book) -> tuple:
     except Exception as exc:  # noqa: BLE001 - recorded in the event; the grade stands and is complete
         return None, f"lab check failed: runs unreadable: {type(exc).__name__}: {exc}"
     reused = {run.name: run.reused_from_id for run in submission.case_runs if run.reused_from_id}
-    # figures=None: the service writes no figure file; the report's charts are drawn from the stored arrays.
-    return lab_check(results, figures=None, rubric=book, reused=reused, artifacts_dir=settings.artifacts_dir)
+    return lab_check(results, rubric=book, reused=reused, artifacts_dir=settings.artifacts_dir)

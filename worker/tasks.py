@@ -19,7 +19,7 @@ from grader.core.settings import settings
 from worker import grading, slot, warm_gate
 from worker.audit import audit_finished_run
 from worker.case_run import process_case_run
-from worker.celery_app import FIGURES_QUEUE, GRADE_QUEUE, app
+from worker.celery_app import COMPLETE_QUEUE, GRADE_QUEUE, app
 
 INFRA_ERRORS = (DatabaseError, BrokerError, OSError)
 RETRY = dict(autoretry_for=INFRA_ERRORS, max_retries=settings.max_infra_retries, retry_backoff=2,
@@ -39,17 +39,17 @@ def run_case_run(case_run_id: int, delivery: int) -> None:
 
 @app.task(name="worker.tasks.grade_submission", **RETRY)
 def grade_submission(submission_id: int) -> None:
-    """Store the grade, then send its completion (figures and lab check) behind the waiting case runs. Sent even when
+    """Store the grade, then send its completion (the lab check) behind the waiting case runs. Sent even when
     the grade was stored already: a redelivery after a crash, or the reconciler re-sending the grade task for a grade
     left incomplete, must still get it completed (completing twice is a no-op)."""
     with new_session() as session:
         grading.grade_submission(session=session, submission_id=submission_id)
-    complete_grade.apply_async(args=[submission_id], queue=FIGURES_QUEUE, priority=lifecycle.FIGURES_PRIORITY)
+    complete_grade.apply_async(args=[submission_id], queue=COMPLETE_QUEUE, priority=lifecycle.COMPLETE_PRIORITY)
 
 
 @app.task(name="worker.tasks.complete_grade", **RETRY)
 def complete_grade(submission_id: int) -> None:
-    """Draw the figures of a stored grade and add its lab check (worker.grading.complete_grade), once."""
+    """Add the lab check to a stored grade (worker.grading.complete_grade), once."""
     with new_session() as session:
         grading.complete_grade(session=session, submission_id=submission_id)
 

@@ -94,5 +94,5 @@ def check(backend, render, mode, jobs, out_dir, overrides, as_json) -> None:
                           overrides=list(overrides), echo=echo)
     click.echo(report.model_dump_json(indent=2) if as_json else "\n" + report.render_text())
     if not as_json:
-        click.echo(f"\nevidence: {out_dir / 'cases'}  report: {out_dir / 'submissions/report.html'}")
+        click.echo(f"\nevidence: {out_dir / 'cases'}  report: {out_dir / 'report.html'}")
     sys.exit(0 if report.passed else 1)

@@ -222,7 +222,7 @@ def status(timeout_s: float) -> None:
         click.echo(f"case runs on {backend}: " + ", ".join(f"{k} {v}" for k, v in sorted(states.items())))
     click.echo("failures: " + (", ".join(f"{k} {v}" for k, v in sorted(s.failures_by_reason.items())) or "none"))
     click.echo(f"stuck:    {s.stuck_case_runs} case runs past their lease")
-    click.echo(f"drawing:  {s.grades_drawing} grades stored whose lab check is being evaluated")
+    click.echo(f"completing: {s.grades_completing} grades stored whose lab check is being evaluated")
     if s.durations_s:
         q = statistics.quantiles(s.durations_s, n=20) if len(s.durations_s) > 1 else s.durations_s * 19
         click.echo(f"measured case runs: {len(s.durations_s)}, median {statistics.median(s.durations_s):.1f} s, "

@@ -31,9 +31,9 @@ def score(submission: Submission, book) -> rubric.GradeReport:
 def store_grade(*, session: Session, submission: Submission, book, report: rubric.GradeReport, execution_s: float,
                 complete: bool, regrade: Regrade | None = None, now: datetime | None = None,
                 detail: str | None = None) -> Grade:
-    """Store `report` as the submission's current grade (no commit). `complete`: its figures and lab check need no
-    drawing (a checkpoint set, or a regrade that evaluated the check again); otherwise `completed_at` stays empty
-    until worker.grading.complete_grade adds them. A regrade's grade supersedes the current one, kept in the history;
+    """Store `report` as the submission's current grade (no commit). `complete`: its lab check is evaluated already or
+    not wanted (a checkpoint set, or a regrade that evaluated the check again); otherwise `completed_at` stays empty
+    until worker.grading.complete_grade adds the check. A regrade's grade supersedes the current one, kept in the history;
     any other grading moves the submission to graded with an event naming the rubric version and `detail`: never the
     scores, which a student may not be shown yet (grader.services.submissions.visibility)."""
     now = now or utcnow()

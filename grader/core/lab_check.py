@@ -8,10 +8,11 @@ evaluated on the same kind of evidence, and each condition whose meaning shifts 
 - rendering: the service runs the lesson cases with rendering off, so only the disabled branch (explicit empty
   frames and a rendering SKIP) is exercised; the camera branch is for `grader check --render`;
 - outputs: the configured output directory is the service's ARTIFACTS_DIR. Every accepted .npz must have been written
-  under it (its bytes are then kept in the database) and every figure drawn for this grade must lie under it, and it
-  must be outside version control (or ignored by it). Checked here, never assumed.
-Nothing is passed by default: a missing run, an array or figure outside ARTIFACTS_DIR, or an artifacts folder that
-git would commit fails its condition like in the lab.
+  under it (its bytes are then kept in the database), and it must be outside version control (or ignored by it).
+  The service writes no image file (the report's charts are drawn in the reader's browser from the stored arrays),
+  so the arrays are the generated files checked. Checked here, never assumed.
+Nothing is passed by default: a missing run, an array outside ARTIFACTS_DIR, or an artifacts folder that git would
+commit fails its condition like in the lab.
 """
 
 from __future__ import annotations
@@ -23,19 +24,20 @@ from pathlib import Path
 from rubric import CHECK_CASES, CaseResult, Rubric
 from rubric.check import CheckOutcome, OutputLocation, evaluate
 
-# Shared by the worker (worker/grading.py, when it grades) and the regrade (grader/regrade.py): a check depends on
-# the rubric version's tolerances, so a regrade evaluates it again on the same runs.
+# Shared by the worker (worker/grading.py, when it completes a grade) and the regrade
+# (grader/services/rubrics/regrade.py): a check depends on the rubric version's tolerances, so a regrade evaluates
+# it again on the same runs.
 
 
-def submission_check(results: Mapping[str, CaseResult], *, figures: Iterable[Path] | None, artifacts_dir: Path,
-                     rubric: Rubric, reused: Mapping[str, int] | None = None) -> CheckOutcome:
+def submission_check(results: Mapping[str, CaseResult], *, artifacts_dir: Path, rubric: Rubric,
+                     reused: Mapping[str, int] | None = None) -> CheckOutcome:
     """The L03 check over the submission's runs of the check's cases (N1-N4, friction-baseline, friction-table-0.30).
 
     The student's own configs (sheet.*) and the colour-swapped control are not lab-check cases; a check case the
     submission lacks is reported as not run. `reused` maps a case name to the case run whose measurement it reused.
     """
     lab = {name: results[name] for name in CHECK_CASES if name in results}
-    outputs = output_location(lab.values(), None if figures is None else list(figures), artifacts_dir=Path(artifacts_dir))
+    outputs = output_location(lab.values(), artifacts_dir=Path(artifacts_dir))
     report = evaluate(lab, outputs=outputs, rubric=rubric)
     return report.outcome(notes=_service_notes(lab, reused or {}))
 
@@ -57,32 +59,27 @@ def _service_notes(lab: Mapping[str, CaseResult], reused: Mapping[str, int]) -> 
                               "the pictures of each case on this page are schematics drawn from measured positions. "
                               "`grader check --render` checks the camera branch (non-empty, finite RGB frames).")
     notes["outputs"] = ("Service run: the configured output directory is the service's ARTIFACTS_DIR (case-run "
-                        "folders and this submission's figures), not a notebook's output folder.")
+                        "folders), not a notebook's output folder.")
     return notes
 
 
-def output_location(results: Iterable[CaseResult], figures: list[Path] | None, *, artifacts_dir: Path) -> OutputLocation:
-    """Every accepted result's arrays.npz and every figure under artifacts_dir, and artifacts_dir outside version
-    control (or ignored by it). figures None: the service wrote no figure file (its charts are drawn in the reader's
-    browser from the stored arrays, grader/services/reports/series.py), so only the arrays are checked."""
+def output_location(results: Iterable[CaseResult], *, artifacts_dir: Path) -> OutputLocation:
+    """Every accepted result's arrays.npz under artifacts_dir, and artifacts_dir outside version control (or ignored
+    by it). The service writes no image file (its charts are drawn in the reader's browser from the stored arrays,
+    grader/services/reports/series.py), so only the arrays are checked."""
     root = artifacts_dir.resolve()
-    in_browser, figures = figures is None, list(figures or [])
     accepted = [r for r in results if r.ok and r.out_dir]
     # Where each .npz was written; its bytes are read from the database (stored_result), so a host that lost the
     # folder since loses nothing: a missing array is one the result does not hold.
     arrays = [Path(r.out_dir) / "arrays.npz" for r in accepted]
-    outside = [str(p) for p in [*arrays, *figures] if not _under(p, root)]
+    outside = [str(p) for p in arrays if not _under(p, root)]
     missing = [str(p) for r, p in zip(accepted, arrays) if not r.arrays]
-    lines = [f"{len(arrays)} .npz and {len(figures)} .png files under ARTIFACTS_DIR {root} (each .npz kept in the "
-             "database with its run)" if not outside else f"OUTSIDE ARTIFACTS_DIR {root}: {outside[:3]}"]
+    lines = [f"{len(arrays)} .npz files under ARTIFACTS_DIR {root} (each kept in the database with its run)"
+             if not outside else f"OUTSIDE ARTIFACTS_DIR {root}: {outside[:3]}"]
     if missing:
         lines.append(f"arrays missing: {missing[:3]}")
-    passed = bool(arrays) and (bool(figures) or in_browser) and not outside and not missing
-    if in_browser:
-        lines.append("figures: drawn in the reader's browser from the arrays stored in the database, no figure file "
-                     "written")
-    elif not figures:
-        lines.append("no figures were drawn for this grade")
+    passed = bool(arrays) and not outside and not missing
+    lines.append("charts: drawn in the reader's browser from the arrays stored in the database, no image file written")
     tracked, detail = _version_control(root)
     lines.append(detail)
     return OutputLocation(passed=passed and not tracked, evidence="; ".join(lines))
@@ -110,13 +107,13 @@ def _version_control(folder: Path) -> tuple[bool, str]:
     return False, f"inside git work tree {top}, ignored by git and nothing under it tracked"
 
 
-def lab_check(results: Mapping[str, CaseResult], *, figures: list | None, rubric: Rubric, reused: Mapping[str, int],
+def lab_check(results: Mapping[str, CaseResult], *, rubric: Rubric, reused: Mapping[str, int],
               artifacts_dir: Path) -> tuple[CheckOutcome | None, str]:
     """(the lab check of the submission's runs, or None, and a note for its event). A bug in evaluating the check
     never blocks or changes a grade: the grade then stores no check and the note says why. The note leaves the verdict
     to the report: a student sees the check only once no item of the grade is withheld (grader.services.submissions.visibility)."""
     try:
-        check = submission_check(results, figures=figures, artifacts_dir=artifacts_dir, rubric=rubric, reused=reused)
+        check = submission_check(results, artifacts_dir=artifacts_dir, rubric=rubric, reused=reused)
     except Exception as exc:  # noqa: BLE001 - the evidence of a check bug is the event, the grade stands
         return None, f"lab check failed: {type(exc).__name__}: {exc}"
     return check, f"lab check stored ({len(check.conditions)} conditions): its verdict is on the report"

@@ -3,7 +3,7 @@
 The neutral core shared by the API and the worker: plain functions on a session, no Celery, no case process, no
 engine. worker.case_run decides what to do with a claimed run and worker.grading grades; this module records it
 with its evidence (CaseEvidence: the case folder is only a cache), and reads a stored result back from the database
-(`stored_result`) for grading, the regrade, the audit and the figures.
+(`stored_result`) for grading, the lab check, the regrade, the audit and the report's charts.
 """
 
 from __future__ import annotations
@@ -33,9 +33,9 @@ HOST = socket.gethostname()
 # The files of a case run's evidence (CaseEvidence), by the names a case process writes and a download serves.
 EVIDENCE_FILES = ("arrays.npz", "provenance.json", "metrics.json", "spec.json", "stdout.txt", "stderr.txt")
 # Where a message goes in its queue (kombu's Redis and filesystem transports serve the lowest number first): a run whose worker died mid-case first, then a queued run whose message was
-# lost (a broker restart), then new runs, and last the figures and lab check of a grade already stored (they go on
-# the cpu queue too, so a worker draws them only when no case waits: at a deadline every grade comes first).
-RERUN_PRIORITY, REQUEUED_PRIORITY, NEW_PRIORITY, FIGURES_PRIORITY = 0, 3, 6, 9
+# lost (a broker restart), then new runs, and last the lab check of a grade already stored (it goes on the cpu
+# queue too, so a worker evaluates it only when no case waits: at a deadline every grade comes first).
+RERUN_PRIORITY, REQUEUED_PRIORITY, NEW_PRIORITY, COMPLETE_PRIORITY = 0, 3, 6, 9
 # A student's new runs take 4, 5, 6, 7, then 8 for the rest, by how many of that student's runs wait ahead of them
 # (worker.celery_app gives Redis one list per priority 0-9): a student with one run waiting is served before the
 # fourth run of a student who queued nine, so students' runs interleave instead of first come, first served.

@@ -331,8 +331,8 @@ class Grade(Base):
     unique index): a second grading attempt fails on it instead of grading twice.
 
     The worker stores a grade (scores, verdicts, feedback) as soon as the rubric has run, with `completed_at` NULL,
-    then draws the lab figures and adds the lab check to its report (`report["check"]`) and sets `completed_at`:
-    the score never changes after it is stored, only the check and the figures join it. A grade made any other way
+    then adds the lab check to its report (`report["check"]`) and sets `completed_at` (worker.grading.complete_grade):
+    the score never changes after it is stored, only the check joins it. A grade made any other way
     (a regrade, a checkpoint sheet graded at once) is complete when stored."""
 
     __tablename__ = "grades"
@@ -349,7 +349,7 @@ class Grade(Base):
     report: Mapped[dict[str, Any]]
     execution_s: Mapped[float] = mapped_column(Float, default=0.0)
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
-    # When its figures were drawn and its lab check stored; NULL while they are (worker.grading.complete_grade).
+    # When its lab check was stored; NULL while it is being evaluated (worker.grading.complete_grade).
     # No default: whoever stores a grade says whether it is complete (the ORM would put a default in for a None).
     completed_at: Mapped[datetime | None] = mapped_column(DateTime)
     superseded_at: Mapped[datetime | None] = mapped_column(DateTime)

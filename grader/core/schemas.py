@@ -108,8 +108,8 @@ class SubmissionPublic(BaseModel):
     updated_at: UtcDateTime
     graded_at: UtcDateTime | None
     report_complete: bool | None = Field(None, description=(
-        "Once graded: false while the figures and the lab check of the stored grade are being drawn (its scores are "
-        "final already), true once they are stored with it; null before a grade"))
+        "Once graded: false while the lab check of the stored grade is being evaluated (its scores are final "
+        "already), true once it is stored with it; null before a grade"))
     total: float | None = None
     max_total: float | None = None
     assignment_id: int | None = None

@@ -152,10 +152,6 @@ class Settings(BaseSettings):
                     raise ValueError(f"{name}: an embedded or placeholder value is refused in production")
         return self
 
-    def figures_dir(self, submission_id: int) -> Path:
-        """Where the worker draws a graded submission's figures and the pages serve them from."""
-        return Path(self.artifacts_dir) / "submissions" / str(submission_id) / "figures"
-
     @property
     def lease_s(self) -> float:
         return self.case_time_limit_s + self.lease_margin_s

@@ -122,8 +122,9 @@ def cases_to_run(sheet: PredictionSheet, rubric: Rubric | None = None, variant: 
     that obey the one-factor rule (a config that breaks it is graded as such, never run as if valid). Unique names.
 
     A sheet of concept checkpoints only submits no config, so it needs the lesson's own cases alone: the same runs for
-    every student. The API grades such a sheet at once where all are stored (grader.assignments.grade_now) and
-    queues them only while one was never measured."""
+    every student. The service grades such a sheet as it is submitted where all are stored
+    (grader.services.submissions.submit.submit, through grader.core.grading.grade_and_store) and queues them only
+    while one was never measured."""
     rubric = rubric or load_rubric(sheet.lesson)
     findings = one_factor_findings(sheet, rubric, variant)
     cases = lesson_cases(variant)

@@ -1,4 +1,4 @@
-"""At a deadline the grades come first: the lab check of a stored grade (its report's completion; the figures are drawn
+"""At a deadline the grades come first: the lab check of a stored grade (its report's completion; the charts are drawn
 in the browser from the stored arrays) waits on the cpu queue behind every case run (worker.celery_app), on the real stack (Redis, PostgreSQL, one Celery worker, real Genesis cases)."""
 
 from __future__ import annotations
@@ -52,8 +52,9 @@ def test_a_grade_is_stored_between_cases_and_completed_after_the_cases_queued_me
     assert len(busy_runs_done) == 9
     states = {e.state: e.id for e in _events(stack, reused["id"])}
     # Event ids are the order the one worker wrote them: the reused sheet's grade came while the forced sheet's
-    # cases were still being measured, and its lab check only after the last of them; no figure is drawn by the
-    # service (the report's charts are drawn in the browser from the stored arrays).
+    # cases were still being measured, and its lab check only after the last of them, without the reconciler
+    # re-sending it (a "completing" event). No PNG is drawn by the service: the report's charts are drawn in the
+    # browser from the stored arrays.
     assert states["graded"] < busy_runs_done[-1], (states, busy_runs_done)
     assert states["lab-check"] > busy_runs_done[-1], (states, busy_runs_done)
-    assert "figures" not in states, states
+    assert "completing" not in states, states

@@ -41,18 +41,19 @@ def test_metrics_and_status_show_queues_workers_and_case_runs(stack, graded):
             CaseRun.backend == "cpu", CaseRun.status == "done"))
         measured = session.scalar(select(func.count()).select_from(CaseRun).where(
             CaseRun.status == "done", CaseRun.reused_from_id.is_(None)))
-        drawing = session.scalar(select(func.count()).select_from(Grade).where(
+        completing = session.scalar(select(func.count()).select_from(Grade).where(
             Grade.superseded_at.is_(None), Grade.completed_at.is_(None)))
     assert samples[("grader_case_runs", (("backend", "cpu"), ("state", "done")))] == done_on_cpu
     assert samples[("grader_case_run_duration_seconds_count", ())] == measured > 0
-    assert samples[("grader_grades_drawing", ())] == drawing
+    assert samples[("grader_grades_completing", ())] == completing
+    assert not any(name == "grader_grades_drawing" for name, _ in samples), "the old name is removed"
 
     printed = subprocess.run([sys.executable, "-m", "grader.cli", "status"], env=with_env, capture_output=True,
                              text=True, timeout=120)
     assert printed.returncode == 0, printed.stderr
     assert "rocm 1" in printed.stdout and "1 live" in printed.stdout and "cpu, grade" in printed.stdout, printed.stdout
     assert f"done {done_on_cpu}" in printed.stdout
-    assert f"drawing:  {drawing} grades stored" in printed.stdout
+    assert f"completing: {completing} grades stored" in printed.stdout
     dispatch_purge = "from worker.celery_app import app; app.connection_for_write().default_channel.queue_purge('rocm')"
     subprocess.run([sys.executable, "-c", dispatch_purge], env=with_env, check=True, timeout=60)
     assert _samples(stack)[("grader_queue_depth", (("queue", "rocm"),))] == 0

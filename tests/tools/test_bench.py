@@ -52,9 +52,9 @@ def test_tables_print_every_figure_beside_its_target():
     assert "fully reused                       0.40 s   met (<= 0.5 s)" in text
     assert "cold (force_rerun)                12.00 s   MISSED by 7 s (2.4x the 5 s)" in text
     assert "until the last case finished   7.50 s, then the rubric 0.30 s" in text
-    assert "figures and lab check stored    18.00 s after the POST (drawn after the grade)" in text
-    assert "figures and lab check stored     0.90 s after the POST" in text
-    assert "redis-pg   last figures and lab check stored 42.5 s after the first POST" in text
+    assert "lab check stored                18.00 s after the POST (evaluated after the grade)" in text
+    assert "lab check stored                 0.90 s after the POST" in text
+    assert "redis-pg   last lab check stored 42.5 s after the first POST" in text
     assert "redis-pg   waited 12.5 s after start for the case process to warm up" in text
     assert "projected to 200: 600 s from 20" in text and "embedded / redis-pg: 1.50x" in text
     assert "max    met (<= 1536 MB) (54 of 500 cases)" in text and "growth +2.0%" in text

@@ -44,19 +44,19 @@ def test_a_resent_run_is_read_before_the_runs_queued_earlier(tmp_path):
         assert connection.SimpleQueue("grade").get(timeout=1).payload == "a grade task"
 
 
-def test_a_grades_figures_are_read_after_every_case_run_queued_before_or_after_them(tmp_path):
+def test_a_grades_lab_check_is_read_after_every_case_run_queued_before_or_after_it(tmp_path):
     """The completion of a stored grade waits on the cpu queue behind the case runs (worker.celery_app): at a deadline
-    a worker measures every waiting case, and so stores every grade, before it draws a figure."""
+    a worker measures every waiting case, and so stores every grade, before it evaluates a lab check."""
     import worker.celery_app  # noqa: F401 - makes filesystem:// this project's transport
-    from grader.core.lifecycle import FIGURES_PRIORITY, NEW_PRIORITY, REQUEUED_PRIORITY, RERUN_PRIORITY
-    from worker.celery_app import FIGURES_QUEUE
+    from grader.core.lifecycle import COMPLETE_PRIORITY, NEW_PRIORITY, REQUEUED_PRIORITY, RERUN_PRIORITY
+    from worker.celery_app import COMPLETE_QUEUE
 
     folder = str(tmp_path)
     options = {"data_folder_in": folder, "data_folder_out": folder, "control_folder": str(tmp_path / "control")}
     with Connection("filesystem://", transport_options=options) as connection:
-        queue = connection.SimpleQueue(FIGURES_QUEUE)
-        for body, priority in (("figures of grade 1", FIGURES_PRIORITY), ("new run", NEW_PRIORITY),
-                               ("figures of grade 2", FIGURES_PRIORITY), ("requeued run", REQUEUED_PRIORITY),
+        queue = connection.SimpleQueue(COMPLETE_QUEUE)
+        for body, priority in (("lab check of grade 1", COMPLETE_PRIORITY), ("new run", NEW_PRIORITY),
+                               ("lab check of grade 2", COMPLETE_PRIORITY), ("requeued run", REQUEUED_PRIORITY),
                                ("rerun", RERUN_PRIORITY), ("newer run", NEW_PRIORITY)):
             queue.put(body, priority=priority)
         read = []
@@ -64,7 +64,8 @@ def test_a_grades_figures_are_read_after_every_case_run_queued_before_or_after_t
             message = queue.get(timeout=1)
             read.append(message.payload)
             message.ack()
-        assert read == ["rerun", "requeued run", "new run", "newer run", "figures of grade 1", "figures of grade 2"]
+        assert read == ["rerun", "requeued run", "new run", "newer run", "lab check of grade 1",
+                        "lab check of grade 2"]
 
 
 def test_a_message_file_appears_only_once_written(tmp_path, monkeypatch):

@@ -63,14 +63,13 @@ def distinct_configs(sheets: list[dict]) -> int:
 
 
 def _finished(engine) -> tuple[int, int, int, datetime | None, datetime | None]:
-    """(graded, failed, grades whose figures and lab check are still being drawn, last grade stored, last grade
-    completed)."""
+    """(graded, failed, grades whose lab check is still being evaluated, last grade stored, last grade completed)."""
     with Session(engine) as session:
         rows = dict(session.execute(select(Submission.status, func.count()).group_by(Submission.status)).all())
         last = session.scalar(select(func.max(Submission.graded_at)))
-        drawing = session.scalar(select(func.count()).select_from(Grade).where(Grade.completed_at.is_(None)))
+        completing = session.scalar(select(func.count()).select_from(Grade).where(Grade.completed_at.is_(None)))
         completed = session.scalar(select(func.max(Grade.completed_at)))
-    return rows.get("graded", 0), rows.get("failed", 0), drawing, last, completed
+    return rows.get("graded", 0), rows.get("failed", 0), completing, last, completed
 
 
 WARM_LIMIT_S = WARM_UP_LIMIT_S  # tools.harness.processes: a warm-up of two slots took 305 s on a loaded host
@@ -100,7 +99,7 @@ def wait_until_warm(stack, log: Callable[[str], None] = print) -> float | None:
 
 def bench_class(stack, size: int, log: Callable[[str], None] = print) -> dict:
     """Every student of the stack's course (size of them) submits once, back to back, once the worker's case process
-    has warmed up; wait for every grade and its figures and lab check. The class's time is to the last stored grade;
+    has warmed up; wait for every grade and its lab check. The class's time is to the last stored grade;
     `complete_s` to the last report complete."""
     warm_s = wait_until_warm(stack, log)
     sheets = class_sheets(stack.students[:size])
@@ -113,14 +112,14 @@ def bench_class(stack, size: int, log: Callable[[str], None] = print) -> dict:
     posted_s = time.monotonic() - started
     deadline = started + WAIT_LIMIT_S * max(1, size // 20)
     while True:
-        graded, failed, drawing, last, completed = _finished(stack.engine)
-        if graded + failed >= size and not drawing:
+        graded, failed, completing, last, completed = _finished(stack.engine)
+        if graded + failed >= size and not completing:
             break
         if stack.worker.poll() is not None:
             raise BenchFailure(f"class of {size}: the worker exited ({stack.worker.returncode}) with {graded} graded")
         if time.monotonic() > deadline:
             raise BenchFailure(f"class of {size}: {graded} graded, {failed} failed when the wait limit passed")
-        log(f"  {graded} graded ({drawing} drawing figures), {failed} failed ({time.monotonic() - started:.0f} s)")
+        log(f"  {graded} graded ({completing} completing), {failed} failed ({time.monotonic() - started:.0f} s)")
         time.sleep(5 if size > 50 else 2)
     total_s = (last - started_at).total_seconds()
     two_factor = sum(1 for i in range(size) if i % TWO_FACTOR_EVERY == TWO_FACTOR_EVERY - 1)

@@ -1,6 +1,6 @@
 """One full L03 submission timed from HTTP POST to its stored grade: first on a just-started worker, cold (every
-case measured again, force_rerun) and fully reused (every case run reuses a stored measurement). The worker draws
-the figures and the lab check after storing the grade; when they were stored is timed too."""
+case measured again, force_rerun) and fully reused (every case run reuses a stored measurement). The worker adds
+the lab check after storing the grade; when it was stored is timed too."""
 
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ def _utcnow() -> datetime:
 
 
 def wait_graded(client, submission_id: int, *, poll_s: float = 0.1, worker=None) -> dict:
-    """Poll until graded with its figures and lab check stored (graded_at is not moved by them); raise BenchFailure
+    """Poll until graded with its lab check stored (graded_at is not moved by it); raise BenchFailure
     on failed, past WAIT_LIMIT_S, or when `worker` (a Popen) exited."""
     deadline = time.monotonic() + WAIT_LIMIT_S
     while True:
@@ -66,8 +66,8 @@ def _event_at(events: list[dict], state: str, submission_id: int) -> datetime:
 
 @dataclass
 class Timed:
-    """One submission timed from just before its POST (server clock): to its stored grade, and to its figures and
-    lab check stored with it (the report complete)."""
+    """One submission timed from just before its POST (server clock): to its stored grade, and to its lab check
+    stored with it (the report complete)."""
 
     graded_s: float
     complete_s: float
@@ -106,19 +106,19 @@ def bench_submission(stack, repeats: int, log: Callable[[str], None] = print) ->
         cold_rubric.append(grading_seconds(staff, timed.state))
         cold_cases.append(timed.graded_s - cold_rubric[-1])
         log(f"  repeat {r + 1}/{repeats} cold {timed.graded_s:.2f} s (cases {cold_cases[-1]:.2f} s, "
-            f"rubric {cold_rubric[-1]:.2f} s; figures and lab check at {timed.complete_s:.2f} s)")
+            f"rubric {cold_rubric[-1]:.2f} s; lab check at {timed.complete_s:.2f} s)")
         timed = time_submission(client, sheet, worker=stack.worker)
         runs = client.case_runs(timed.state["id"])
         if not all(run["reused_from_id"] for run in runs):
             raise BenchFailure(f"submission {timed.state['id']}: expected every case run reused")
         reused.append(timed.graded_s)
         reused_complete.append(timed.complete_s)
-        log(f"  repeat {r + 1}/{repeats} reused {timed.graded_s:.2f} s (figures and lab check at "
+        log(f"  repeat {r + 1}/{repeats} reused {timed.graded_s:.2f} s (lab check at "
             f"{timed.complete_s:.2f} s)")
     return {"stack": stack.kind, "repeats": repeats, "case_runs": timed.state["progress"]["total"],
             "first_s": first.graded_s, "cold_s": median(cold), "reused_s": median(reused), "cold_samples_s": cold,
             "reused_samples_s": reused,
             # the cold median split at the last case's end: case runs (with their queueing) | the rubric
             "cold_cases_s": median(cold_cases), "cold_rubric_s": median(cold_rubric),
-            # POST to the figures and lab check stored with the grade (drawn after it)
+            # POST to the lab check stored with the grade (evaluated after it)
             "cold_complete_s": median(cold_complete), "reused_complete_s": median(reused_complete)}

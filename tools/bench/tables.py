@@ -44,11 +44,11 @@ def format_submission(f: dict) -> list[str]:
             f"  cold (force_rerun)             {f['cold_s']:8.2f} s   {verdict('submission_cold_s', f['cold_s'])}",
             *([f"    until the last case finished {f['cold_cases_s']:6.2f} s, then the rubric "
                f"{f['cold_rubric_s']:.2f} s"] if "cold_rubric_s" in f else []),
-            *([f"    figures and lab check stored   {f['cold_complete_s']:6.2f} s after the POST (drawn after the "
-               f"grade)"] if "cold_complete_s" in f else []),
+            *([f"    lab check stored               {f['cold_complete_s']:6.2f} s after the POST (evaluated after "
+               f"the grade)"] if "cold_complete_s" in f else []),
             f"  fully reused                   {f['reused_s']:8.2f} s   "
             f"{verdict('submission_reused_s', f['reused_s'])}",
-            *([f"    figures and lab check stored   {f['reused_complete_s']:6.2f} s after the POST"]
+            *([f"    lab check stored               {f['reused_complete_s']:6.2f} s after the POST"]
               if "reused_complete_s" in f else []),
             f"  cold / reused                  {f['cold_s'] / f['reused_s']:8.1f} x"]
 
@@ -64,7 +64,7 @@ def format_class(rows: list[dict]) -> list[str]:
         lines.append(f"  {f['stack']:10s} {f['submissions']:5d} {f['graded']:6d} {f['failed']:6d} "
                      f"{f['distinct_configs']:7d} {f['two_factor']:8d} {f['posting_s']:7.1f}s {f['total_s']:7.1f}s "
                      f"{f['per_submission_s']:7.2f}s  {verdict('class_s', projected, partial=partial)}")
-    lines += [f"  {f['stack']:10s} last figures and lab check stored {f['complete_s']:.1f} s after the first POST"
+    lines += [f"  {f['stack']:10s} last lab check stored {f['complete_s']:.1f} s after the first POST"
               for f in rows if f.get("complete_s") is not None]
     lines += [f"  {f['stack']:10s} waited {f['warm_up_wait_s']:.1f} s after start for the case process to warm up"
               if f.get("warm_up_wait_s") is not None else

@@ -1,6 +1,7 @@
-"""When a grade's figures and lab check joined it: the worker stores the score first and completes it after.
+"""When a grade's lab check (until issue 24 also its PNGs) joined it: the worker stores the score first and completes
+it after.
 
-Existing grades were stored with their figures and check already drawn, so they are complete when they were made.
+Existing grades were stored with their check (and PNGs) already made, so they are complete when they were made.
 
 Revision ID: 0009
 Revises: 0008

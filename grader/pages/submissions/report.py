@@ -21,7 +21,7 @@ from grader.pages.templates import TEMPLATES, request_locale
 from grader.pages.views import report_view
 from grader.services.identity import access
 from grader.services.setup import assignments
-from grader.services.reports import exports, series as figure_series
+from grader.services.reports import exports, series as chart_series
 from grader.services.submissions import submit as submissions
 from grader.services.errors import NotFound
 from grader.services.submissions.visibility import attempt_standing, grade_view
@@ -87,11 +87,11 @@ def report_page(request: Request, submission_id: int, session: SessionDep, user:
 
 
 def _charts(submission: Submission, withheld: dict[str, str]) -> list:
-    """The report's charts once the submission is graded (as the PNG figures were, drawn after grading), without the
+    """The report's charts once the submission is graded (as the PNGs were, drawn after grading), without the
     runs whose measurements decide an item withheld from the reader (GradeView.withheld_runs)."""
     if submission.status != SubmissionState.GRADED:
         return []
-    return figure_series.report_charts(submission, withheld)
+    return chart_series.report_charts(submission, withheld)
 
 
 @router.get("/submissions/{submission_id}/results.json")
@@ -120,11 +120,11 @@ def series_json(request: Request, submission_id: int, session: SessionDep, user:
     # (the items, why, and the grade they are withheld from) is part of the validator, like the report's.
     grade = grade_view(session=session, submission=submission, user=user, report=False)
     # Built once per state of its runs (and reader) while the submission is finished: a report view asks again.
-    tag = etag.etag_of("series", [user.id, submission.id, figure_series.SHAPE, *[
+    tag = etag.etag_of("series", [user.id, submission.id, chart_series.SHAPE, *[
         [r.id, r.status, r.result_status, r.reused_from_id, str(r.finished_at)] for r in submission.case_runs]],
         sorted(grade.hidden.items()), grade.stored.id if grade.stored is not None else None) \
         if submission.status in (SubmissionState.GRADED, SubmissionState.FAILED) else None
-    return etag.conditional(request, tag, lambda: JSONResponse(figure_series.submission_series(
+    return etag.conditional(request, tag, lambda: JSONResponse(chart_series.submission_series(
         submission=submission, withheld=grade.withheld_runs), headers={"Cache-Control": "private, no-cache"}),
         cache_key="series")
 

@@ -16,7 +16,7 @@ from grader.core.models import ApiToken, User, WebSession, utcnow
 from grader.services.identity import quotas
 from grader.core.settings import settings
 
-# last_seen_at is written at most this often, not on every page and figure a browser loads.
+# last_seen_at is written at most this often, not on every page and chart a browser loads.
 TOUCH_EVERY = timedelta(minutes=1)
 
 

@@ -3,9 +3,9 @@ arrays stored in the database, and the list of charts with a text caption of the
 
 Why data and not pictures: drawing a submission's 18 PNGs cost more server CPU than its simulation and the PNGs lived
 on the drawing worker's disk (issue 24; `python -m tools.bench --only figures` measures both ways, docs/benchmark.md).
-The series are what the PNG figures showed, nothing more: each case run's measured trajectories and its stored
+The series are what the PNGs showed, nothing more: each case run's measured trajectories and its stored
 metrics (first contact, stops, pair frictions), never an item's score, verdict, expected value or tolerance, and never
-the lab check. So they follow the rule the PNG figures and the evidence downloads follow: whoever may read the
+the lab check. So they follow the rule the PNGs and the evidence downloads followed: whoever may read the
 submission (grader.services.identity.access) may read them, except the runs whose measurements decide an item withheld from
 the reader (`GradeView.withheld_runs`, grader.services.submissions.visibility): those are named, with why, and carry no series,
 metric or caption until the item is shown.

@@ -171,8 +171,7 @@ def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric, o
         new = grading.score(submission, new_rubric)
         results = {run.name: stored_result(run) for run in submission.case_runs}
         reused = {run.name: run.reused_from_id for run in submission.case_runs if run.reused_from_id}
-        check, _ = lab_check(results, figures=None, rubric=new_rubric, reused=reused,
-                             artifacts_dir=settings.artifacts_dir)
+        check, _ = lab_check(results, rubric=new_rubric, reused=reused, artifacts_dir=settings.artifacts_dir)
         new = new.model_copy(update={"check": check})
     except Exception as exc:  # one submission that cannot be regraded must not hide the others
         return RegradeEntry(**entry, skipped=f"regrading failed: {type(exc).__name__}: {exc}"), None
@@ -259,7 +258,7 @@ def commit_regrade(session: Session, *, course: Course, lesson: str, version: st
     for entry, report in results:
         if report is None:
             continue
-        # its lab check was evaluated again on the figures already drawn: the new grade is complete
+        # its lab check was evaluated again on the runs already stored: the new grade is complete
         stored = grading.store_grade(session=session, submission=submissions[entry.submission_id], book=new_rubric,
                                      report=rubric.GradeReport.model_validate(report),
                                      execution_s=preview.elapsed_s / max(len(results), 1), complete=True,

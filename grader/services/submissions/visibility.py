@@ -228,7 +228,7 @@ class GradeView:
     def pending(self) -> str | None:
         return self.report.get("pending") if self.shown and self.hidden else None
 
-    # The stored grade's provenance, never withheld: which rubric, and whether its figures are drawn.
+    # The stored grade's provenance, never withheld: which rubric, and whether its lab check is stored.
     @property
     def rubric_lesson(self) -> str | None:
         return self.stored.rubric_lesson if self.stored is not None else None

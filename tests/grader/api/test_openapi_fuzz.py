@@ -74,17 +74,12 @@ def report_request_counts():
 # each GET operation (and the writes an instructor or student makes every day) gets one hand-written valid request
 # from a caller allowed to make it, against rows that exist, and must answer 2xx, its body on its documented schema.
 
-PNG = (b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\x00\x00\x00\x01\x00\x00\x00\x01\x08\x02\x00\x00\x00\x90wS\xde\x00\x00"
-       b"\x00\x0cIDATx\x9cc\xf8\xff\xff?\x00\x05\xfe\x02\xfe\xa75\x81\x84\x00\x00\x00\x00IEND\xaeB`\x82")
-
-
 @pytest.fixture
 def world(seeded, tmp_path):
-    """`seeded` plus: alice's submission graded (a stored grade, one lab figure, one case run's evidence files), an
-    assignment of the course with an extension of hers, and an audit entry; the ids every valid request names."""
+    """`seeded` plus: alice's submission graded (a stored grade, one case run's evidence files), an assignment of
+    the course with an extension of hers, and an audit entry; the ids every valid request names."""
     from grader.core.db import new_session
     from grader.core.models import CaseEvidence, CaseRun, Grade, Submission
-    from grader.core.settings import settings as grader_settings
     from rubric.scoring import GradeReport
 
     api = seeded
@@ -92,9 +87,6 @@ def world(seeded, tmp_path):
     sid = mine["id"]
     report = GradeReport(lesson="L03", student="alice", rubric_version="2", rubric_hash="x", engine_version="1.3.3",
                          total=0, max_total=0, complete=True, items=[], config_findings=[])
-    figures = grader_settings.figures_dir(sid)
-    figures.mkdir(parents=True)
-    (figures / "lab.png").write_bytes(PNG)
     with new_session() as session:
         run = session.query(CaseRun).filter_by(submission_id=sid, name="N1").one()
         run.status, run.result_status, run.actual_backend = "done", "ok", "cpu"

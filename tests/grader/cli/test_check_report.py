@@ -41,7 +41,7 @@ def pngs(measured, tmp_path_factory) -> list[Path]:
 def _write(tmp_path, measured, pngs, **kw) -> str:
     args = dict(verdict=False, conditions=CONDITIONS, results=measured, figures=pngs) | kw
     path = report.write_check_report(tmp_path, **args)
-    assert path == tmp_path / "submissions/report.html"
+    assert path == tmp_path / "report.html"
     return path.read_text(encoding="utf-8")
 
 

@@ -1,5 +1,5 @@
-"""The grade is stored as soon as the rubric has run; the figures and the lab check join it after, once, and a
-grade left incomplete by a worker that died while drawing is found by the reconciler. Real measured runs (the
+"""The grade is stored as soon as the rubric has run; the lab check joins it after, once, and a grade left
+incomplete by a worker that died while completing it is found by the reconciler. Real measured runs (the
 session's Genesis cases), the real app in-process on SQLite, the worker's own grading functions."""
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ def _submission_ready_to_grade(api, measured) -> int:
 
 
 def _lease_passes(submission_id: int) -> None:
-    """The grade task was sent longer than a lease ago (as if its worker died while drawing)."""
+    """The grade task was sent longer than a lease ago (as if its worker died while completing the grade)."""
     from grader.core.db import new_session
     from grader.core.models import Submission, utcnow
     from grader.core.settings import settings
@@ -57,7 +57,7 @@ def _states(submission_id: int) -> list[str]:
                                                  .order_by(Event.id))]
 
 
-def test_the_score_is_stored_first_and_the_figures_and_lab_check_join_it_once(api, measured):
+def test_the_score_is_stored_first_and_the_lab_check_joins_it_once(api, measured):
     from grader.core.db import new_session
     from grader.reconcile import find_and_requeue
     from grader.core.settings import settings
@@ -68,7 +68,7 @@ def test_the_score_is_stored_first_and_the_figures_and_lab_check_join_it_once(ap
         grade = grade_submission(session=session, submission_id=submission_id)
         assert grade is not None and grade.completed_at is None and grade.report.get("check") is None
         total = grade.total
-    assert not settings.figures_dir(submission_id).exists(), "no figure is drawn before the grade is stored"
+    assert not list((settings.artifacts_dir / "submissions").rglob("*.png")), "the service draws no PNG"
 
     # The student reads the score at once; the API and the page say the lab check is being evaluated.
     state = api.client.get(f"/v1/submissions/{submission_id}", headers=api.as_("alice")).json()
@@ -77,7 +77,7 @@ def test_the_score_is_stored_first_and_the_figures_and_lab_check_join_it_once(ap
     assert "is being evaluated on the same runs" in page and 'http-equiv="refresh"' in page
     assert "L03 CHECK: " not in page and "Grading in progress" not in page
 
-    # A worker killed while drawing: within the lease nothing is re-sent; after it, the grade task is, once.
+    # A worker killed while completing: within the lease nothing is re-sent; after it, the grade task is, once.
     with new_session() as session:
         assert find_and_requeue(session=session).gradings == []
     _lease_passes(submission_id)
@@ -94,18 +94,18 @@ def test_the_score_is_stored_first_and_the_figures_and_lab_check_join_it_once(ap
         assert complete_grade(session=session, submission_id=submission_id) is None
         assert grade_submission(session=session, submission_id=submission_id) is None
 
-    assert not settings.figures_dir(submission_id).exists(), "the service draws no PNG: the browser draws the charts"
+    assert not list((settings.artifacts_dir / "submissions").rglob("*.png")), "the browser draws the charts"
     assert check["verdict_line"].startswith("L03 CHECK: ")
     outputs = next(c for c in check["conditions"] if c["id"] == "outputs")
-    # The check saw the runs' arrays under ARTIFACTS_DIR, and says where the figures come from instead of files.
-    expected = f"{len(CHECK_CASES)} .npz and 0 .png files under ARTIFACTS_DIR"
+    # The check saw the runs' arrays under ARTIFACTS_DIR, and says where the charts come from instead of files.
+    expected = f"{len(CHECK_CASES)} .npz files under ARTIFACTS_DIR"
     assert outputs["passed"] and expected in outputs["evidence"], outputs
-    assert "figures: drawn in the reader's browser from the arrays stored in the database" in outputs["evidence"]
+    assert "charts: drawn in the reader's browser from the arrays stored in the database" in outputs["evidence"]
     states = _states(submission_id)
     assert states.count("graded") == 1 and states.count("lab-check") == 1
     assert states.index("graded") < states.index("lab-check"), states
-    # The only "figures" event is the reconciler's re-send note (grader/reconcile.py); completing draws none.
-    assert states[-2:] == ["figures", "lab-check"] and states.count("figures") == 1, states
+    # The only "completing" event is the reconciler's re-send note (grader/reconcile.py).
+    assert states[-2:] == ["completing", "lab-check"] and states.count("completing") == 1, states
 
     state = api.client.get(f"/v1/submissions/{submission_id}", headers=api.as_("alice")).json()
     assert state["report_complete"] is True and state["total"] == total
@@ -116,7 +116,7 @@ def test_the_score_is_stored_first_and_the_figures_and_lab_check_join_it_once(ap
         assert find_and_requeue(session=session).gradings == [], "a complete grade is never re-sent"
 
 
-def test_a_regrade_skips_a_grade_whose_figures_are_being_drawn(api, measured):
+def test_a_regrade_skips_a_grade_whose_lab_check_is_being_evaluated(api, measured):
     from grader.core.db import new_session
     from grader.core.grades import current_grade
     from grader.core.models import Submission

@@ -18,28 +18,19 @@ from grader.core.lab_check import submission_check
 pytestmark = pytest.mark.slow
 
 
-def holding(measured, figures) -> Path:
-    """The nearest folder that holds both the measured case folders and the figures (under pytest-xdist the lesson is
-    measured into a folder every test process shares, beside this process's own temporary folder)."""
-    return Path(os.path.commonpath([r.out_dir for r in measured.values()] + [str(f) for f in figures]))
-
-
-@pytest.fixture(scope="module")
-def figures(measured, tmp_path_factory):
-    from worker.figures import lab_figures
-
-    return lab_figures(measured, tmp_path_factory.mktemp("check-figures"))
+def holding(measured) -> Path:
+    """The nearest folder that holds the measured case folders (under pytest-xdist the lesson is measured into a
+    folder every test process shares)."""
+    return Path(os.path.commonpath([r.out_dir for r in measured.values()]))
 
 
 def _condition(outcome, cid):
     return next(c for c in outcome.conditions if c.id == cid)
 
 
-def test_a_submission_with_every_check_case_passes_and_says_what_each_condition_means_here(
-        measured, figures, tmp_path_factory):
-    artifacts = holding(measured, figures)
-    outcome = submission_check(measured, figures=figures, artifacts_dir=artifacts, rubric=load_rubric("L03"),
-                               reused={"N1": 7})
+def test_a_submission_with_every_check_case_passes_and_says_what_each_condition_means_here(measured):
+    artifacts = holding(measured)
+    outcome = submission_check(measured, artifacts_dir=artifacts, rubric=load_rubric("L03"), reused={"N1": 7})
     assert outcome.passed, "\n".join(f"{c.id}: {c.evidence}" for c in outcome.conditions if not c.passed)
     assert outcome.verdict_line == verdict_line(True) == "L03 CHECK: PASSED"
     # Evaluated on the check's cases only: the colour-swapped control and N5 are graded, not lab-check cases.
@@ -49,12 +40,12 @@ def test_a_submission_with_every_check_case_passes_and_says_what_each_condition_
     assert "N1 (case run 7) reused identical earlier measurements" in processes
     assert "only the disabled branch" in _condition(outcome, "rendering").evidence
     outputs = _condition(outcome, "outputs").evidence
-    assert f"6 .npz and {len(figures)} .png files under ARTIFACTS_DIR" in outputs
+    assert "6 .npz files under ARTIFACTS_DIR" in outputs and "no image file written" in outputs
     assert "not inside a git work tree" in outputs and "ARTIFACTS_DIR" in outputs
 
 
-def test_files_outside_artifacts_dir_fail_the_output_condition(measured, figures, tmp_path):
-    outcome = submission_check(measured, figures=figures, artifacts_dir=tmp_path, rubric=load_rubric("L03"))
+def test_files_outside_artifacts_dir_fail_the_output_condition(measured, tmp_path):
+    outcome = submission_check(measured, artifacts_dir=tmp_path, rubric=load_rubric("L03"))
     assert not outcome.passed and [c.id for c in outcome.conditions if not c.passed] == ["outputs"]
     assert "OUTSIDE ARTIFACTS_DIR" in _condition(outcome, "outputs").evidence
     assert outcome.verdict_line == verdict_line(False, [_condition(outcome, "outputs").title])
@@ -72,19 +63,15 @@ def test_an_artifacts_dir_inside_a_git_work_tree_must_be_ignored_by_it(measured,
         folder = artifacts / "case-runs" / name
         shutil.copytree(measured[name].out_dir, folder)
         results[name] = dataclasses.replace(measured[name], out_dir=str(folder))
-    figure = artifacts / "figures" / "friction_friction-baseline.png"
-    figure.parent.mkdir(parents=True)
-    figure.write_bytes(b"\x89PNG\r\n\x1a\n")  # only where it lies is checked here, not what it shows
-    outcome = submission_check(results, figures=[figure], artifacts_dir=artifacts, rubric=load_rubric("L03"))
+    outcome = submission_check(results, artifacts_dir=artifacts, rubric=load_rubric("L03"))
     outputs = _condition(outcome, "outputs")
     assert outputs.passed is ignored, outputs.evidence
     assert ("ignored by git and nothing under it tracked" if ignored else "NOT ignored by git") in outputs.evidence
 
 
-def test_a_missing_check_case_is_reported_not_run(measured, figures, tmp_path_factory):
+def test_a_missing_check_case_is_reported_not_run(measured):
     partial = {name: r for name, r in measured.items() if name != "friction-table-0.30"}
-    outcome = submission_check(partial, figures=figures, artifacts_dir=holding(measured, figures),
-                               rubric=load_rubric("L03"))
+    outcome = submission_check(partial, artifacts_dir=holding(measured), rubric=load_rubric("L03"))
     assert not outcome.passed
     assert [c.id for c in outcome.conditions if not c.passed] == ["table_friction_change"]
     assert "friction-table-0.30" in _condition(outcome, "table_friction_change").evidence

@@ -168,6 +168,38 @@ def test_migration_0011_renames_an_assignments_items_to_part_keeping_it(tmp_path
     engine.dispose()
 
 
+def test_migration_0023_renames_the_figures_event_state_completing_and_back(tmp_path):
+    """The reconciler's re-send of a grade's completion was logged as state "figures" though nothing is drawn; 0023
+    renames every stored one "completing", keeping its detail and leaving every other state, down and up."""
+    from alembic import command
+    from sqlalchemy import text
+
+    url = f"sqlite:///{tmp_path / 'm.db'}"
+    engine, submission_id = migrated_with_a_submission(url, specs=[])
+    config = alembic_config(url)
+    command.downgrade(config, "0022")
+    re_sent = "grade task re-sent: the grade is stored, its figures and lab check are not"
+    with engine.begin() as conn:
+        for state, detail in (("figures", re_sent), ("lab-check", "lab check stored")):
+            conn.execute(text("INSERT INTO events (submission_id, state, detail, at) VALUES (:s, :state, :detail, "
+                              "CURRENT_TIMESTAMP)"), {"s": submission_id, "state": state, "detail": detail})
+
+    def states() -> list[tuple[str, str]]:
+        with engine.connect() as conn:
+            return [tuple(row) for row in conn.execute(text("SELECT state, detail FROM events ORDER BY id"))]
+
+    command.upgrade(config, "head")
+    upgraded = states()
+    assert ("completing", re_sent) in upgraded and ("lab-check", "lab check stored") in upgraded
+    assert "figures" not in {state for state, _ in upgraded}
+    assert ("submitted", "0 case runs") in upgraded
+    command.downgrade(config, "0022")
+    assert states() == [("figures", re_sent) if row == ("completing", re_sent) else row for row in upgraded]
+    command.upgrade(config, "head")
+    assert states() == upgraded
+    engine.dispose()
+
+
 def test_production_refuses_embedded_and_placeholder_urls():
     from grader.core.settings import Settings
 

@@ -11,7 +11,7 @@ from fastapi.responses import Response
 from grader.web.deps import CurrentUser, Name, SessionDep, SubmissionDep
 from grader.api.responses import errors, file_ok
 from grader.services.reports.exports import EVIDENCE
-from grader.services.reports import exports, series as figure_series
+from grader.services.reports import exports, series as chart_series
 from grader.core.states import SubmissionState
 from grader.services.submissions.visibility import grade_view
 
@@ -41,4 +41,4 @@ def series(submission: SubmissionDep, session: SessionDep, user: CurrentUser) ->
     if submission.status != SubmissionState.GRADED:
         raise HTTPException(status.HTTP_409_CONFLICT, f"submission {submission.id} is {submission.status}")
     withheld = grade_view(session=session, submission=submission, user=user, report=False).withheld_runs
-    return figure_series.submission_series(submission=submission, withheld=withheld)
+    return chart_series.submission_series(submission=submission, withheld=withheld)
