@@ -15,7 +15,7 @@ dashboard: A course's class dashboard, read from storage once and served both as
 exports: Grade exports for instructors: a course's grades as CSV, an assignment's counted grades as CSV, one
   submission as Gradescope results.json, and the evidence files of a case run (from the database).
   public: course_grades_csv, override_note, counted_grades_csv, gradescope, evidence_names, evidence_file
-series: The report's figures as data: the series its browser charts draw (grader/static/report_charts.js), read from
+series: The report's charts as data: the series its browser charts draw (grader/static/report_charts.js), read from
   the arrays stored in the database, and the list of charts with a text caption of their key numbers.
   public: compact, submission_series, Chart, report_charts
 """

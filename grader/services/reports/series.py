@@ -1,4 +1,4 @@
-"""The report's figures as data: the series its browser charts draw (grader/static/report_charts.js), read from the
+"""The report's charts as data: the series its browser charts draw (grader/static/report_charts.js), read from the
 arrays stored in the database, and the list of charts with a text caption of their key numbers.
 
 Why data and not pictures: drawing a submission's 18 PNGs cost more server CPU than its simulation and the PNGs lived
