@@ -105,7 +105,7 @@ class Progress:
     runs: list[RunProgress]
     running_on_backend: dict[str, int]  # runs being run now on each backend this submission waits on, its own too
     ahead_s: float | None  # estimated case time before this submission's first waiting run; None: nothing waits
-    ahead_unmeasured: int  # runs ahead (running or queued) with no estimate (not in ahead_s)
+    ahead_unmeasured: int  # runs ahead (running or queued) with no estimate or past it (not in ahead_s)
     own_s: float | None  # estimated time of this submission's unfinished runs; None: one has no estimate
     running_ahead: list[RunningAhead] = field(default_factory=list)
     warming_up: "WarmingUp | None" = None  # its runs wait for workers still warming up (none warm on their queue)
@@ -307,7 +307,7 @@ def _ahead(session: Session, order: dict[str, list[int]], rows: list[RunProgress
             ahead_ids.extend(ids[:first - 1])
     total, unmeasured = 0.0, 0
     for run in running:
-        if run.remaining_s is None:
+        if run.remaining_s is None or run.overdue:  # past its estimate: what it still needs is not known
             unmeasured += 1
         else:
             total += run.remaining_s
