@@ -253,3 +253,26 @@ def test_the_chinese_report_shows_the_answers_and_the_expected_answers_in_chines
     assert cells["A3"] == ("agree: yes", "agree: yes")
     shoot(page, "report_answers")
     context.close()
+
+
+def test_a_refusal_on_the_course_page_names_the_assignment_and_writes_times_as_the_page_does(browser, service):
+    from grader.client import Client
+    from tests.integration.helpers import at
+
+    prof = Client(service.url, service.tokens["prof"])
+    prof.update_course(COURSE, {"timezone": "Asia/Kolkata"})  # a half-hour zone
+    shut = prof.create_assignment(COURSE, {"title": "Week 2 friction lab", "part": "sheet", "open_at": at(days=-4),
+                                           "due_at": at(days=-3), "hard_close_at": at(days=-2)})
+    soon = prof.create_assignment(COURSE, {"title": "Week 5 concepts", "part": "checkpoints", "open_at": at(days=1),
+                                           "due_at": at(days=2), "hard_close_at": at(days=3)})
+    for locale, closed_words, opens_words in (("en", "“Week 2 friction lab” closed at", "“Week 5 concepts” opens at"),
+                                              ("zh", "“Week 2 friction lab”已于", "“Week 5 concepts”于")):
+        context, page = signed_in(browser, service, "alice", locale)
+        page.goto(f"{service.url}/courses/{COURSE}")
+        for assignment, words in ((shut, closed_words), (soon, opens_words)):
+            now = page.inner_text(f"#assignment-{assignment['id']}-now")
+            assert words in now and "IST" in now, now  # the title, the course's zone named
+            assert f"assignment {assignment['id']}" not in now and not re.search(r"\d{4}-\d\d-\d\dT\d", now), now
+        assert_accessible(page, f"the course page ({locale})")
+        shoot(page, f"{'zh_' if locale == 'zh' else ''}course_refusals")
+        context.close()
