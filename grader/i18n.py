@@ -11,7 +11,9 @@ stale the moment someone edits the .po and forgets to compile, and the page woul
 
 from __future__ import annotations
 
+import ast
 import functools
+import json
 import re
 from datetime import UTC, datetime
 from gettext import NullTranslations
@@ -198,6 +200,13 @@ MESSAGES = [
     N_("invalid YAML"), N_("unknown assignment"), N_("cross-site request refused"),
     N_("This sign-in link is unknown. Check that the whole link was copied, or ask your instructor for a new one."),
     N_("must be UTF-8 text"), N_("the file"),
+    # rubric.scoring: the expected answers stated in words (grader.i18n.expected)
+    N_("no: also require clearance above tolerance"), N_("no: read proxy, contact, clearance and trajectory together"),
+    N_("no: the hold interval must stay below threshold"), N_("false: improvement is not guaranteed"),
+    N_("the measured sustained stops"), N_("unchanged within tolerance"),
+    N_("the lane with the longer sustained-stop distance"), N_("lanes whose stop distance changes within tolerance"),
+    N_("the direction measured at fixed dt"), N_("a one-factor config"), N_("a measured result"),
+    N_("no listed rule fits the engine"), N_("a change that no answer names"), N_("unresolved"),
     # rubric.metrics.TUMBLE_EXPLANATION
     N_("A cube that tipped over onto another face travelled partly by tumbling, not sliding, so its stop distance is "
        "not a sliding stop and cannot be compared with friction alone."),
@@ -265,6 +274,112 @@ def lesson_word(locale: str, section: str, text: str, lesson: str = "L03") -> st
     if found is None and len(MISSING) < MISSING_LIMIT:
         MISSING.add((locale, f"{lesson}:{section}:{text}"))
     return found or text
+
+
+def choice_word(locale: str, value, lesson: str = "L03") -> str:
+    """One answer value as the form shows its choice: an id with spaces (`unequal simulated duration`), yes/no for a
+    boolean, in the locale through the lesson's choices; a number as the locale writes it; free text as it is."""
+    if isinstance(value, bool):
+        return lesson_word(locale, "choices", str(value).lower(), lesson) if locale != DEFAULT else ("yes" if value else "no")
+    if isinstance(value, int | float):
+        return number(value, locale)
+    text = str(value)
+    if text in ("true", "false"):  # a boolean the scoring rule wrote as text
+        return choice_word(locale, text == "true", lesson)
+    spaced = text.replace("_", " ")
+    if locale == DEFAULT:
+        return spaced if re.fullmatch(r"[a-z_]+", text) else text
+    found = lesson_text(lesson, locale).get("choices", {}).get(spaced)
+    return found or (gettext(locale, spaced) if spaced in known(locale) else text)
+
+
+def _answer_parts(locale: str, value, label: str, lesson: str) -> list[tuple[str, str]]:
+    """(label, value) pairs of one answer, nested answers flattened into the form's labels ("baseline low")."""
+    if isinstance(value, dict) and set(value) == {"value", "unit"}:
+        return [(label, f"{number(value['value'], locale)} {value['unit']}")]
+    if isinstance(value, dict) and set(value) == {"kind"}:
+        return [(label, choice_word(locale, value["kind"], lesson))]
+    if isinstance(value, dict):
+        return [pair for key, item in value.items()
+                for pair in _answer_parts(locale, item, " ".join(p for p in (label, key.replace("_", " ")) if p), lesson)]
+    if isinstance(value, list):
+        return [(label, gettext(locale, N_(", ")).join(choice_word(locale, v, lesson) for v in value)
+                 or gettext(locale, N_("none")))]
+    return [(label, choice_word(locale, value, lesson))]
+
+
+def answer(locale: str, value, lesson: str = "L03") -> str:
+    """A student's answer to one item (the sheet's answer, as stored in the grade's JSON) in the form's words:
+    'direction: decrease', '方向：减小'; each field by its form label, each value by its choice."""
+    if isinstance(value, str):
+        try:
+            value = json.loads(value)
+        except ValueError:
+            return value
+    parts = _answer_parts(locale, value, "", lesson)
+    colon, semicolon = gettext(locale, N_(": ")), gettext(locale, N_("; "))
+    return semicolon.join(f"{lesson_word(locale, 'labels', label, lesson)}{colon}{text}" if label else text
+                          for label, text in parts)
+
+
+# The expected answers the scoring rules state (rubric/scoring), each as a pattern whose values are answer values:
+# put in the reader's words by `expected`. An expected text none of them matches is a choice or shows as it is.
+EXPECTED: list[tuple[re.Pattern, str]] = [
+    (re.compile(r"^(?P<field>agree|same_length)=(?P<value>True|False)$"), "field"),
+    (re.compile(r"^(?P<many>[0-9]+) samples: (?P<a>\[.*?\]), (?P<few>[0-9]+) samples: (?P<b>\[.*?\])$"), "samples"),
+    (re.compile(r"^lanes (?P<value>\[.*\])$"), "lanes"),
+    (re.compile(r"^visual layer; affects results: (?P<value>true|false)$"), "layer"),
+    (re.compile(r"^measured (?P<value>[a-z_]+)$"), "measured"),
+    (re.compile(r"^the lane measured farther \((?P<value>[a-z_]+)\)$"), "farther"),
+    (re.compile(r"^only diagnostics measured to improve: (?P<value>\[.*\]|none)$"), "improve"),
+    (re.compile(r"^substep_dt (?P<dt>[0-9.e-]+) s, (?P<n>[0-9]+) samples, (?P<u>[0-9]+) internal updates$"), "timing"),
+    (re.compile(r"^\{.*\}$"), "mapping"),
+]
+
+
+def expected(locale: str, text: str | None, lesson: str = "L03") -> str:
+    """The expected answer a scoring rule stated, in the reader's words, with the same translations the form uses."""
+    if not text:
+        return text or ""
+    for pattern, form in EXPECTED:
+        found = pattern.match(text)
+        if not found:
+            continue
+        try:
+            return _expected(locale, form, found, text, lesson)
+        except (ValueError, SyntaxError):  # not the shape the pattern promised: shown as it is
+            return text
+    if " or " in text and all(re.fullmatch(r"[a-z_]+", part) for part in text.split(" or ")):
+        return gettext(locale, N_(" or ")).join(choice_word(locale, part, lesson) for part in text.split(" or "))
+    if re.fullmatch(r"[a-z_]+", text):
+        return choice_word(locale, text, lesson)
+    return message(locale, text)
+
+
+def _expected(locale: str, form: str, found: re.Match, text: str, lesson: str) -> str:
+    values = found.groupdict()
+    if form == "field":
+        return answer(locale, {values["field"]: values["value"] == "True"}, lesson)
+    if form == "samples":
+        return answer(locale, {f"samples {values['many']}": ast.literal_eval(values["a"]),
+                               f"samples {values['few']}": ast.literal_eval(values["b"])}, lesson)
+    if form == "lanes":
+        return answer(locale, {"lanes": ast.literal_eval(values["value"])}, lesson)
+    if form == "layer":
+        return answer(locale, {"color_layer": "visual", "affects_results": values["value"] == "true"}, lesson)
+    if form == "measured":
+        return gettext(locale, N_("measured %(value)s")) % {"value": choice_word(locale, values["value"], lesson)}
+    if form == "farther":
+        return gettext(locale, N_("the lane measured farther (%(value)s)")) % {
+            "value": choice_word(locale, values["value"], lesson)}
+    if form == "improve":
+        improved = [] if values["value"] == "none" else ast.literal_eval(values["value"])
+        return gettext(locale, N_("only diagnostics measured to improve: %(value)s")) % {
+            "value": answer(locale, improved, lesson)}
+    if form == "timing":
+        return answer(locale, {"substep_dt": {"value": float(values["dt"]), "unit": "s"}, "samples": int(values["n"]),
+                               "internal_updates": int(values["u"])}, lesson)
+    return answer(locale, ast.literal_eval(text), lesson)
 
 
 # --- numbers and dates ----------------------------------------------------------------------------------------------

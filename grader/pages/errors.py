@@ -11,10 +11,16 @@ from fastapi import FastAPI, Request, status
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
 from grader.core.db import new_session
+from grader.i18n import N_
 from grader.pages.auth import SignInRequired, page_user
 from grader.pages.csrf import CrossSiteRefused
 from grader.pages.templates import TEMPLATES
 from grader.services.errors import DomainError, Forbidden, NotFound
+
+
+# The request fields a refusal names, as a reader knows them (the API names them as they are sent).
+FIELD_LABELS = {"assignment_id": N_("assignment"), "sheet": N_("prediction sheet"), "client address": N_("your address"),
+                "token": N_("API token"), "file": N_("file")}
 
 
 def sign_in_redirect(request: Request) -> RedirectResponse:
@@ -32,7 +38,8 @@ def page_error(request: Request, exc: DomainError, code: int) -> Response:
         user = page_user(request, session)
         if isinstance(exc, NotFound | Forbidden):
             return not_found(request, user, exc.detail.removesuffix(" not found"))
-        return TEMPLATES.TemplateResponse(request, "error.html", {"user": user, "error": exc, "code": code},
+        return TEMPLATES.TemplateResponse(request, "error.html", {"user": user, "error": exc, "code": code,
+                                                                  "field_labels": FIELD_LABELS},
                                           status_code=code)
 
 

@@ -75,4 +75,17 @@ def lesson(context, text, section: str = "questions") -> str:
     return i18n.lesson_word(_locale(context), section, text)
 
 
-TEMPLATES.env.filters.update(local=local_time, num=number, pct=percent, msg=message, lesson=lesson)
+@pass_context
+def answer(context, text) -> str:
+    """A student's stored answer to an item in the form's words, in the page's language."""
+    return i18n.answer(_locale(context), text)
+
+
+@pass_context
+def expected(context, text) -> str:
+    """An item's expected answer, as a scoring rule stated it, in the form's words and the page's language."""
+    return i18n.expected(_locale(context), text)
+
+
+TEMPLATES.env.filters.update(local=local_time, num=number, pct=percent, msg=message, lesson=lesson, answer=answer,
+                             expected=expected)

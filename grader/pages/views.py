@@ -5,7 +5,6 @@ Pure reads of the database rows and the stored grade; nothing here runs a case, 
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -52,8 +51,8 @@ class ItemRow:
     part: str
     kind: str
     question: str
-    prediction: str
-    expected: str
+    prediction: str  # the sheet's answer as the grade stores it (JSON); the page shows it in the reader's words
+    expected: str  # as the scoring rule stated it (English); likewise
     measured: str
     backends: str
     tolerances: list[dict]
@@ -178,27 +177,6 @@ def _files(run: CaseRun) -> list[str]:
     return evidence_names(run)  # from the database: the worker's folder may be on another host, or gone
 
 
-def _prediction(text: str) -> str:
-    """'{"lane": "high"}' -> 'lane: high' (the stored prediction is the sheet's answer as JSON)."""
-    try:
-        value = json.loads(text)
-    except (TypeError, ValueError):
-        return text
-    if isinstance(value, dict):
-        return "; ".join(f"{k}: {_plain(v)}" for k, v in value.items())
-    return _plain(value)
-
-
-def _plain(value) -> str:
-    if isinstance(value, list):
-        return ", ".join(_plain(v) for v in value)
-    if isinstance(value, dict):
-        return ", ".join(f"{k} {_plain(v)}" for k, v in value.items())
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    return str(value)
-
-
 def _tolerance_rows(names: dict[str, str], rubric) -> list[dict]:
     rows = []
     for name, value in names.items():
@@ -244,7 +222,7 @@ def report_view(submission: Submission, grade: GradeView | None,
         counted = override is not None or item["verdict"] not in ("inconclusive", "pending")
         view.items.append(ItemRow(
             id=item["id"], part=item["part"], kind=item["kind"], question=item["question"],
-            prediction=_prediction(item["prediction"]), expected=item["expected"], measured=item.get("measured", ""),
+            prediction=item["prediction"], expected=item["expected"], measured=item.get("measured", ""),
             backends=", ".join(f"{case} on {backend}" for case, backend in item.get("backends", {}).items()),
             tolerances=_tolerance_rows(item.get("tolerances", {}), rubric), verdict=item["verdict"],
             # the measured verdict, overridden or not; the verdict cell links an override (_item_review.html)

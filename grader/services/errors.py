@@ -13,11 +13,16 @@ from __future__ import annotations
 
 
 class DomainError(Exception):
-    """A refusal a person should read: `detail` says what and why; `errors` name fields and rules where they apply."""
+    """A refusal a person should read: `detail` says what and why; `errors` name fields and rules where they apply.
 
-    def __init__(self, detail: str, errors: list[dict[str, str]] | None = None):
+    `reason` and `facts` (optional) say the same as data, for a page to put in its reader's words: a key naming the
+    rule (`opens`, `closed`...) and its values as they are (titles, datetimes, counts), never formatted."""
+
+    def __init__(self, detail: str, errors: list[dict[str, str]] | None = None, *, reason: str | None = None,
+                 facts: dict | None = None):
         super().__init__(detail)
         self.detail, self.errors = detail, errors or []
+        self.reason, self.facts = reason, dict(facts or {})
 
 
 class NotFound(DomainError):
@@ -33,16 +38,16 @@ class Conflict(DomainError):
 
 
 class Invalid(DomainError):
-    def __init__(self, detail: str, errors: list[dict[str, str]] | None = None):
-        super().__init__(detail, errors)
+    pass
 
 
 class Refused(Invalid):
     """A submission the assignment does not take now; `field` and `rule` say why (with the time that applies).
     `retry_after_s` is set when waiting helps (the hourly limit): the API answers 429 with Retry-After."""
 
-    def __init__(self, field: str, rule: str, retry_after_s: int | None = None, *, detail: str = "submission refused"):
-        super().__init__(detail, [{"field": field, "rule": rule}])
+    def __init__(self, field: str, rule: str, retry_after_s: int | None = None, *, detail: str = "submission refused",
+                 reason: str | None = None, facts: dict | None = None):
+        super().__init__(detail, [{"field": field, "rule": rule}], reason=reason, facts=facts)
         self.args = (rule,)
         self.field, self.rule, self.retry_after_s = field, rule, retry_after_s
 

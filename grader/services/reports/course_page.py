@@ -39,6 +39,7 @@ class NowLine:
     penalty: float | None
     refusal: str | None
     retry_after_s: int | None
+    refused: Refused | None = None  # the refusal itself: its reason and facts, for the page to say in its words
 
 
 @dataclass(frozen=True)
@@ -79,7 +80,7 @@ def _now(*, session: Session, assignment: Assignment, student: User, now: dateti
     try:
         attempt, late = logic.admit(session=session, assignment=assignment, student=student, now=now)
     except Refused as refused:
-        return NowLine(None, None, None, None, refused.rule, refused.retry_after_s)
+        return NowLine(None, None, None, None, refused.rule, refused.retry_after_s, refused)
     return NowLine(attempt, late, logic.late_text(late), logic.penalty_fraction(assignment, late), None, None)
 
 

@@ -78,18 +78,23 @@ def admit(*, session: Session, assignment: Assignment, student: User, now: datet
     """(attempt number, seconds late) for a submission at `now` (naive UTC); Refused before open, after the hard
     close that applies to the student, beyond the attempt limit or beyond the submissions allowed per hour."""
     tz = assignment.course.timezone
+    # The API's English rule, and the same as facts for a page to say in its reader's words (grader.pages.errors).
+    facts = {"assignment": assignment.title, "assignment_id": assignment.id, "now": now}
     if now < assignment.open_at:
         raise Refused("assignment_id", f"assignment {assignment.id} opens at {iso(assignment.open_at, tz)}; "
-                                       f"it is {iso(now, tz)}")
+                                       f"it is {iso(now, tz)}", reason="opens", facts=facts | {"at": assignment.open_at})
     dates = dates_for(session=session, assignment=assignment, student=student)
     if now > dates.hard_close_at:
         whose = "your extension's" if dates.extension else "its"
         raise Refused("assignment_id", f"assignment {assignment.id} closed at {iso(dates.hard_close_at, tz)} "
-                                       f"({whose} hard close); it is {iso(now, tz)}")
+                                       f"({whose} hard close); it is {iso(now, tz)}",
+                      reason="closed_extension" if dates.extension else "closed",
+                      facts=facts | {"at": dates.hard_close_at})
     used = attempts_used(session=session, assignment=assignment, student=student)
     if assignment.max_attempts is not None and used >= assignment.max_attempts:
         raise Refused("assignment_id", f"assignment {assignment.id} allows {assignment.max_attempts} attempts; "
-                                       f"{used} already submitted")
+                                       f"{used} already submitted", reason="attempts",
+                      facts=facts | {"allowed": assignment.max_attempts, "used": used})
     if assignment.max_per_hour is not None:
         recent = submitted_last_hour(session=session, assignment=assignment, student=student, now=now)
         if len(recent) >= assignment.max_per_hour:
@@ -99,7 +104,8 @@ def admit(*, session: Session, assignment: Assignment, student: User, now: datet
             raise Refused("assignment_id", (
                 f"assignment {assignment.id} allows {assignment.max_per_hour} submissions per hour; "
                 f"{len(recent)} in the last hour, the next is allowed at {iso(next_at, tz)}"),
-                retry_after_s=max(1, math.ceil((next_at - now).total_seconds())))
+                retry_after_s=max(1, math.ceil((next_at - now).total_seconds())), reason="per_hour",
+                facts=facts | {"allowed": assignment.max_per_hour, "used": len(recent), "at": next_at})
     late = max(0, math.ceil((now - dates.due_at).total_seconds()))
     return used + 1, late
 

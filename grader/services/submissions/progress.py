@@ -1,25 +1,44 @@
-"""A submission's progress while it is graded: where each of its case runs waits in its backend's queue (counted from
-the database), how long its cases took when they were measured before, and each run's state; read by the progress
-page and its polled JSON (grader.pages.submissions.progress)."""
+"""A submission's progress while it is graded: each of its case runs' state as stored (queued, running, done), where
+each waiting run stands in its backend's queue (counted from the database), what is being run ahead of it with the
+time it has left, and estimates from measured durations; read by the progress page and its polled JSON
+(grader.pages.submissions.progress)."""
 
 from __future__ import annotations
 
 import statistics
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from datetime import datetime
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from grader.core import warmth
+from grader.core import clock, warmth
 from grader.core.lifecycle import NEW_PRIORITY, REQUEUED_PRIORITY, fair_priority
-from grader.core.states import CaseRunPurpose, CaseRunState, SubmissionState
 from grader.core.models import CaseRun, Submission, User
+from grader.core.settings import settings
+from grader.core.states import CaseRunPurpose, CaseRunState, ExecutionMode, SubmissionState
 from grader.services.identity import access
 
-# The last runs of one case kept for its median: enough to be steady, few enough to follow a faster worker.
+# The last measured runs an estimate is taken over: enough to be steady, few enough to follow a faster worker.
 MEASURED_RUNS_KEPT = 50
 FINISHED = (SubmissionState.GRADED, SubmissionState.FAILED)
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """How long a run is expected to take, from measured durations: their median and range over `runs` runs.
+
+    `basis` "case": earlier runs of this very case (same physics) on its backend; "kind": runs of any case of its kind
+    (contact, friction) on its backend, for a configuration never measured. Only runs that measured a case themselves
+    count (not a reused measurement), in the execution mode the run will have; in a warm case process only those that
+    reused a built scene, so a process's start, Genesis' import and a first scene build (the warm-up) are left out."""
+
+    median_s: float
+    low_s: float
+    high_s: float
+    runs: int
+    basis: str
 
 
 @dataclass(frozen=True)
@@ -35,14 +54,40 @@ class RunProgress:
     reused: bool  # finished on a stored measurement of the same content key, not run again
     position: int | None  # 1 = next to be drawn from its backend's queue; None unless queued
     waiting: int | None  # runs queued on the same backend, this one included; None unless queued
-    typical_s: float | None  # median wall time of this case's earlier real runs on this backend; None: none yet
-    measured_runs: int  # how many runs that median is taken over
+    estimate: Estimate | None  # None: nothing of its kind was measured on its backend
+    running_s: float | None  # how long it has been running; None unless running
     wall_s: float | None
     error: str | None
 
     @property
     def finished(self) -> bool:
         return self.status in (CaseRunState.DONE, CaseRunState.FAILED)
+
+    @property
+    def remaining_s(self) -> float | None:
+        """What it still needs by its estimate: all of it while queued, the rest while running (never below 0)."""
+        if self.finished or self.estimate is None:
+            return None
+        return max(0.0, self.estimate.median_s - (self.running_s or 0.0))
+
+
+@dataclass(frozen=True)
+class RunningAhead:
+    """A run of someone else being run now on a backend this submission waits on: its slot frees after it."""
+
+    kind: str
+    backend: str
+    running_s: float
+    estimate: Estimate | None
+
+    @property
+    def remaining_s(self) -> float | None:
+        return None if self.estimate is None else max(0.0, self.estimate.median_s - self.running_s)
+
+    @property
+    def overdue(self) -> bool:
+        """Running longer than its estimate: what is left is not known."""
+        return self.estimate is not None and self.running_s > self.estimate.median_s
 
 
 @dataclass(frozen=True)
@@ -58,10 +103,11 @@ class Progress:
     submission: Submission
     status: str
     runs: list[RunProgress]
-    running_on_backend: dict[str, int]  # runs being run now on each backend this submission waits on
-    ahead_s: float | None  # measured case time queued ahead of this submission's first waiting run; None: unknown
-    ahead_unmeasured: int  # runs ahead whose case was never measured (not in ahead_s)
-    own_s: float | None  # measured case time of this submission's unfinished runs; None: one is unmeasured
+    running_on_backend: dict[str, int]  # runs being run now on each backend this submission waits on, its own too
+    ahead_s: float | None  # estimated case time before this submission's first waiting run; None: nothing waits
+    ahead_unmeasured: int  # runs ahead (running or queued) with no estimate or past it (not in ahead_s)
+    own_s: float | None  # estimated time of this submission's unfinished runs; None: one has no estimate
+    running_ahead: list[RunningAhead] = field(default_factory=list)
     warming_up: "WarmingUp | None" = None  # its runs wait for workers still warming up (none warm on their queue)
 
     @property
@@ -76,22 +122,36 @@ class Progress:
             out[run.status] = out.get(run.status, 0) + 1
         return out
 
+    @property
+    def phase(self) -> str:
+        """What the submission is doing now, from its runs as they are: graded, failed, grading (every case ran),
+        running (one of its runs is being run), waiting (none is: they wait in the queue), or done."""
+        if self.finished or self.status == SubmissionState.GRADING:
+            return self.status
+        counts = self.counts
+        if counts[CaseRunState.RUNNING]:
+            return "running"
+        return "waiting" if counts[CaseRunState.QUEUED] else "done"
+
 
 def submission_progress(*, session: Session, user: User, submission_id: int) -> Progress:
     """The progress of a submission `user` may read (NotFound for any other, as for its report)."""
     submission = access.readable_submission(session=session, user=user, submission_id=submission_id)
+    now = clock.now()
     runs = list(submission.case_runs)
+    estimates = _Estimates(session)
     backends = sorted({r.backend for r in runs if r.status == CaseRunState.QUEUED})
     order = {backend: queue_order(session, backend) for backend in backends}
     places = {run_id: (i + 1, len(ids)) for ids in order.values() for i, run_id in enumerate(ids)}
-    typical = {key: _typical(session, *key) for key in {(r.spec_key, r.backend) for r in runs}}
-    rows = [_row(r, places.get(r.id), typical[(r.spec_key, r.backend)]) for r in runs]
-    ahead_s, unmeasured = _ahead(session, order, rows, typical)
+    rows = [_row(r, places.get(r.id), estimates.of(r.spec_key, r.kind, r.backend, r.mode), now) for r in runs]
+    running_ahead = _running_ahead(session, backends, {r.id for r in runs}, estimates, now)
+    ahead_s, unmeasured = _ahead(session, order, rows, running_ahead, estimates)
     unfinished = [row for row in rows if not row.finished]
-    own = None if any(row.typical_s is None for row in unfinished) else sum(row.typical_s for row in unfinished)
+    own = None if any(row.estimate is None for row in unfinished) else sum(row.remaining_s for row in unfinished)
     return Progress(submission=submission, status=submission.status, runs=rows,
                     running_on_backend={b: _running(session, b) for b in backends},
-                    ahead_s=ahead_s, ahead_unmeasured=unmeasured, own_s=own, warming_up=warming_up(backends))
+                    ahead_s=ahead_s, ahead_unmeasured=unmeasured, own_s=own, running_ahead=running_ahead,
+                    warming_up=warming_up(backends))
 
 
 def warming_up(backends: list[str]) -> WarmingUp | None:
@@ -114,11 +174,57 @@ def warming_up(backends: list[str]) -> WarmingUp | None:
     return WarmingUp(for_s=max(0.0, time.time() - since), last_s=last)
 
 
-def _row(run: CaseRun, place: tuple[int, int] | None, typical: tuple[float | None, int]) -> RunProgress:
+def _elapsed(started_at: datetime | None, now: datetime) -> float:
+    return max(0.0, (now - started_at).total_seconds()) if started_at is not None else 0.0
+
+
+def _row(run: CaseRun, place: tuple[int, int] | None, estimate: Estimate | None, now: datetime) -> RunProgress:
+    running = run.status == CaseRunState.RUNNING
     return RunProgress(id=run.id, name=run.name, kind=run.kind, backend=run.backend, status=run.status,
                        result_status=run.result_status, reused=run.reused_from_id is not None,
                        position=place[0] if place else None, waiting=place[1] if place else None,
-                       typical_s=typical[0], measured_runs=typical[1], wall_s=run.wall_s, error=run.error)
+                       estimate=estimate, running_s=_elapsed(run.started_at, now) if running else None,
+                       wall_s=run.wall_s, error=run.error)
+
+
+class _Estimates:
+    """Estimates by (spec_key, kind, backend, mode), each read once per request."""
+
+    def __init__(self, session: Session):
+        self.session, self._cache = session, {}
+
+    def of(self, spec_key: str | None, kind: str, backend: str, mode: str | None) -> Estimate | None:
+        """The estimate of a run: from earlier runs of the same case, else from runs of cases of its kind."""
+        mode = mode or settings.execution_mode  # a run that names no mode runs in the worker's
+        if spec_key is not None:
+            found = self._get("case", spec_key, backend, mode)
+            if found is not None:
+                return found
+        return self._get("kind", kind, backend, mode)
+
+    def _get(self, basis: str, value: str, backend: str, mode: str) -> Estimate | None:
+        key = (basis, value, backend, mode)
+        if key not in self._cache:
+            self._cache[key] = _estimate(self.session, basis, value, backend, mode)
+        return self._cache[key]
+
+
+def _estimate(session: Session, basis: str, value: str, backend: str, mode: str) -> Estimate | None:
+    """The median and range of the latest MEASURED_RUNS_KEPT measured durations of runs of one case (`basis` "case",
+    `value` its spec_key) or one kind of case ("kind"), on `backend`, in execution mode `mode` (see Estimate)."""
+    query = (select(CaseRun.wall_s)
+             .where(CaseRun.spec_key == value if basis == "case" else CaseRun.kind == value,
+                    CaseRun.backend == backend, CaseRun.status == CaseRunState.DONE, CaseRun.result_status == "ok",
+                    CaseRun.reused_from_id.is_(None), CaseRun.wall_s.is_not(None),
+                    CaseRun.provenance["execution_mode"].as_string() == mode))
+    if mode == ExecutionMode.WARM:
+        query = query.where(CaseRun.provenance["scene"].as_string() == "reused")
+    walls = list(session.scalars(query.order_by(CaseRun.finished_at.desc(), CaseRun.id.desc())
+                                 .limit(MEASURED_RUNS_KEPT)))
+    if not walls:
+        return None
+    return Estimate(median_s=statistics.median(walls), low_s=min(walls), high_s=max(walls), runs=len(walls),
+                    basis=basis)
 
 
 def queue_order(session: Session, backend: str) -> list[int]:
@@ -173,42 +279,46 @@ def _waiting_when_sent(earlier, run) -> bool:
             and (earlier.finished_at is None or earlier.finished_at > run.queued_at))
 
 
-def _typical(session: Session, spec_key: str | None, backend: str) -> tuple[float | None, int]:
-    """The median wall time of the latest real runs of this case (same physics, spec_key) on `backend`, and how many;
-    a run that reused a measurement took no time of its own and is left out."""
-    if spec_key is None:
+def _running_ahead(session: Session, backends: list[str], own: set[int], estimates: _Estimates,
+                   now: datetime) -> list[RunningAhead]:
+    """Others' runs being run now on `backends`, longest-running first: the slots this submission waits for."""
+    if not backends:
+        return []
+    rows = session.execute(
+        select(CaseRun.id, CaseRun.kind, CaseRun.backend, CaseRun.spec_key, CaseRun.mode, CaseRun.started_at)
+        .where(CaseRun.backend.in_(backends), CaseRun.status == CaseRunState.RUNNING)
+        .order_by(CaseRun.started_at, CaseRun.id)).all()
+    return [RunningAhead(kind=r.kind, backend=r.backend, running_s=_elapsed(r.started_at, now),
+                         estimate=estimates.of(r.spec_key, r.kind, r.backend, r.mode))
+            for r in rows if r.id not in own]
+
+
+def _ahead(session: Session, order: dict[str, list[int]], rows: list[RunProgress], running: list[RunningAhead],
+           estimates: _Estimates) -> tuple[float | None, int]:
+    """Estimated case time before this submission's first waiting run on each backend: what others' running runs
+    still need and the estimates of the runs queued ahead of it, summed; and how many of those have no estimate.
+    (None, 0) when nothing of this submission waits."""
+    if not any(row.position for row in rows):
         return None, 0
-    walls = list(session.scalars(
-        select(CaseRun.wall_s).where(CaseRun.spec_key == spec_key, CaseRun.backend == backend,
-                                     CaseRun.status == CaseRunState.DONE, CaseRun.result_status == "ok",
-                                     CaseRun.reused_from_id.is_(None), CaseRun.wall_s.is_not(None))
-        .order_by(CaseRun.finished_at.desc()).limit(MEASURED_RUNS_KEPT)))
-    return (statistics.median(walls), len(walls)) if walls else (None, 0)
-
-
-def _ahead(session: Session, order: dict[str, list[int]], rows: list[RunProgress],
-           typical: dict) -> tuple[float | None, int]:
-    """Measured case time queued ahead of this submission's first waiting run on each backend, summed, and how many
-    runs ahead have no measurement. (None, 0) when nothing of this submission waits."""
     ahead_ids = []
     for backend, ids in order.items():
         first = min((row.position for row in rows if row.backend == backend and row.position), default=None)
         if first:
             ahead_ids.extend(ids[:first - 1])
-    if not any(row.position for row in rows):
-        return None, 0
-    if not ahead_ids:
-        return 0.0, 0
-    keys = session.execute(select(CaseRun.spec_key, CaseRun.backend).where(CaseRun.id.in_(ahead_ids))).all()
     total, unmeasured = 0.0, 0
-    for key in keys:
-        key = (key.spec_key, key.backend)
-        if key not in typical:
-            typical[key] = _typical(session, *key)
-        if typical[key][0] is None:
+    for run in running:
+        if run.remaining_s is None or run.overdue:  # past its estimate: what it still needs is not known
             unmeasured += 1
         else:
-            total += typical[key][0]
+            total += run.remaining_s
+    if ahead_ids:
+        for r in session.execute(select(CaseRun.spec_key, CaseRun.kind, CaseRun.backend, CaseRun.mode)
+                                 .where(CaseRun.id.in_(ahead_ids))).all():
+            found = estimates.of(r.spec_key, r.kind, r.backend, r.mode)
+            if found is None:
+                unmeasured += 1
+            else:
+                total += found.median_s
     return total, unmeasured
 
 
@@ -217,18 +327,28 @@ def _running(session: Session, backend: str) -> int:
                                                         CaseRun.status == CaseRunState.RUNNING)).all())
 
 
+def _estimate_json(estimate: Estimate | None) -> dict | None:
+    if estimate is None:
+        return None
+    return {"median_s": estimate.median_s, "low_s": estimate.low_s, "high_s": estimate.high_s,
+            "runs": estimate.runs, "basis": estimate.basis}
+
+
 def as_json(progress: Progress) -> dict:
     """What the page's script polls: the submission's state, each run's, and where the report is."""
     s = progress.submission
     return {
-        "submission_id": s.id, "status": progress.status, "finished": progress.finished,
+        "submission_id": s.id, "status": progress.status, "phase": progress.phase, "finished": progress.finished,
         "report_url": f"/submissions/{s.id}", "counts": progress.counts,
         "ahead_s": progress.ahead_s, "ahead_unmeasured": progress.ahead_unmeasured, "own_s": progress.own_s,
         "running_on_backend": progress.running_on_backend,
+        "running_ahead": [{"kind": r.kind, "backend": r.backend, "running_s": r.running_s,
+                           "remaining_s": r.remaining_s, "estimate": _estimate_json(r.estimate)}
+                          for r in progress.running_ahead],
         "warming_up": None if progress.warming_up is None else {"for_s": progress.warming_up.for_s,
                                                                 "last_s": progress.warming_up.last_s},
         "runs": [{"id": r.id, "name": r.name, "backend": r.backend, "status": r.status,
                   "result_status": r.result_status, "reused": r.reused, "position": r.position,
-                  "waiting": r.waiting, "typical_s": r.typical_s, "measured_runs": r.measured_runs,
-                  "wall_s": r.wall_s, "error": r.error} for r in progress.runs],
+                  "waiting": r.waiting, "estimate": _estimate_json(r.estimate), "running_s": r.running_s,
+                  "remaining_s": r.remaining_s, "wall_s": r.wall_s, "error": r.error} for r in progress.runs],
     }

@@ -5,6 +5,7 @@ the medians of measured runs of the same case, the page and the JSON its script 
 from __future__ import annotations
 
 import re
+from datetime import timedelta
 
 from sqlalchemy import select
 
@@ -71,35 +72,108 @@ def _user(session, name: str):
     return session.scalar(select(User).where(User.name == name))
 
 
-def test_the_estimate_is_the_median_of_real_runs_of_the_same_case_and_says_when_there_is_none(api):
-    earlier = [submit(api, "prof") for _ in range(4)]
+WARM = {"execution_mode": "warm", "scene": "reused"}  # what a warm case process records for a case on a kept scene
+
+
+def measure(run: CaseRun, wall_s: float, provenance: dict | None = None, *, ago_s: float = 0.0) -> None:
+    """As a worker leaves a run that measured its case: done, ok, its time and the provenance's execution mode."""
+    run.status, run.result_status, run.wall_s = "done", "ok", wall_s
+    run.provenance = dict(WARM if provenance is None else provenance)
+    run.finished_at = utcnow() - timedelta(seconds=ago_s)
+    run.started_at = run.finished_at - timedelta(seconds=wall_s)
+
+
+def test_the_estimate_is_the_median_and_range_of_warm_runs_of_the_same_case_warm_up_left_out(api):
+    earlier = [submit(api, "prof") for _ in range(6)]
     bob, mine = submit(api, "bob"), submit(api, "alice")
     with new_session() as session:
-        # N1 of earlier submissions: three real runs (1, 3, 8 s), one reused (no time of its own), one failed.
-        for sid, (status, result, wall, reused) in zip(earlier, [
-                ("done", "ok", 1.0, False), ("done", "ok", 3.0, False), ("done", "ok", 8.0, False),
-                ("failed", "error", 100.0, False)]):
+        # N1 of earlier submissions: three warm runs on kept scenes (1, 3, 8 s); a first scene build (the warm-up,
+        # 30 s), an isolated run (14 s) and a failed one (100 s) are not what a warm worker takes for it.
+        for sid, (wall, provenance, status) in zip(earlier, [
+                (1.0, WARM, "ok"), (3.0, WARM, "ok"), (8.0, WARM, "ok"),
+                (30.0, {"execution_mode": "warm", "scene": "fresh"}, "ok"),
+                (14.0, {"execution_mode": "isolated"}, "ok"), (100.0, WARM, "error")]):
             run = next(r for r in runs_of(session, sid) if r.name == "N1")
-            run.status, run.result_status, run.wall_s = status, result, wall
-            run.started_at = run.finished_at = utcnow()
+            measure(run, wall, provenance)
+            run.result_status = status
+        # N2 once, but reused from a stored measurement: no time of its own.
         reused = next(r for r in runs_of(session, earlier[0]) if r.name == "N2")
-        reused.status, reused.result_status, reused.reused_from_id = "done", "ok", runs_of(session, earlier[1])[0].id
-        reused.started_at = reused.finished_at = utcnow()
+        measure(reused, 0.0)
+        reused.reused_from_id = runs_of(session, earlier[1])[0].id
         session.commit()
         p = progress.submission_progress(session=session, user=_user(session, "alice"), submission_id=mine)
     by_name = {r.name: r for r in p.runs}
-    assert (by_name["N1"].typical_s, by_name["N1"].measured_runs) == (3.0, 3)
-    assert (by_name["N2"].typical_s, by_name["N2"].measured_runs) == (None, 0)
-    assert p.own_s is None  # one of her cases was never measured: no total is claimed
+    n1 = by_name["N1"].estimate
+    assert (n1.median_s, n1.low_s, n1.high_s, n1.runs, n1.basis) == (3.0, 1.0, 8.0, 3, "case")
+    # N2 was never measured itself: estimated from the contact runs measured on cpu (N1's three).
+    n2 = by_name["N2"].estimate
+    assert (n2.median_s, n2.low_s, n2.high_s, n2.runs, n2.basis) == (3.0, 1.0, 8.0, 3, "kind")
+    # No friction case was measured: its time is not known, and no total is claimed.
+    assert by_name["friction-baseline"].estimate is None and p.own_s is None
     # Ahead of her first run (N1): Bob's N1, sent at the same best priority before hers; the prof's wait behind.
     assert by_name["N1"].position == 2 and p.ahead_s == 3.0 and p.ahead_unmeasured == 0
-    assert bob
+    assert p.phase == "waiting" and bob
     page = api.client.get(f"/submissions/{mine}/progress", headers=api.as_("alice"))
     assert page.status_code == 200, page.text
     row = page.text.split('id="run-N1"', 1)[1].split("</tr>", 1)[0]
-    assert "3.0 s" in row and "(median of 3)" in row
-    assert "no measurement yet" in page.text.split('id="run-N2"', 1)[1].split("</tr>", 1)[0]
-    assert re.search(r"Your first waiting case run is number \d+ of \d+ queued on the cpu queue", page.text)
+    assert "about 3.0 s" in row and "median of 3 measured runs of this case, 1.0 s–8.0 s" in row
+    row = page.text.split('id="run-N2"', 1)[1].split("</tr>", 1)[0]
+    assert "never measured: median of 3 measured contact runs, 1.0 s–8.0 s" in row
+    assert "not known: nothing of its kind measured yet" in page.text.split('id="run-friction-baseline"', 1)[1]
+    assert re.search(r"Your first waiting case run is number 2 of \d+ queued on the cpu queue: 1 run waits ahead of it\.",
+                     page.text)
+    assert "Case time ahead of it, from measured durations: about 3.0 s." in page.text
+    assert "Running your cases" not in page.text and "wait in the queue: none is being run yet" in page.text
+
+
+def test_a_run_being_run_ahead_is_counted_with_its_time_left_and_a_queued_run_is_not_called_running(api):
+    earlier = submit(api, "prof")
+    bob, mine = submit(api, "bob"), submit(api, "alice")
+    with new_session() as session:
+        for run in runs_of(session, earlier):  # every case measured warm: contact 2 s, friction 4 s
+            measure(run, 2.0 if run.kind == "contact" else 4.0)
+        # Bob's N1 is being run, 0.5 s in, his other runs done; Alice's N1 is done (reused), the rest of hers wait.
+        bobs, *others = runs_of(session, bob)
+        for run in others:
+            measure(run, 0.0)
+            run.reused_from_id = runs_of(session, earlier)[0].id
+        bobs.status, bobs.started_at = CaseRunState.RUNNING, utcnow() - timedelta(seconds=0.5)
+        hers = runs_of(session, mine)
+        measure(hers[0], 0.0)
+        hers[0].reused_from_id = runs_of(session, earlier)[0].id
+        session.commit()
+        p = progress.submission_progress(session=session, user=_user(session, "alice"), submission_id=mine)
+        first = min((r for r in p.runs if r.position), key=lambda r: r.position)
+    assert p.phase == "waiting" and p.counts == {"queued": 8, "running": 0, "done": 1, "failed": 0}
+    (ahead,) = p.running_ahead
+    # its time left: the estimate less the time it has run (measured when the page was read; the machine may be slow)
+    assert ahead.kind == "contact" and ahead.estimate.median_s == 2.0 and ahead.running_s >= 0.5
+    assert ahead.remaining_s == max(0.0, 2.0 - ahead.running_s) and ahead.remaining_s <= 1.5
+    # next in the queue, yet a run is ahead of it: its time left counted (unknown once it ran past its estimate)
+    assert first.position == 1 and p.ahead_s == (0.0 if ahead.overdue else ahead.remaining_s)
+    assert p.own_s == sum(r.estimate.median_s for r in p.runs if not r.finished)
+    page = api.client.get(f"/submissions/{mine}/progress", headers=api.as_("alice")).text
+    assert "Nothing" not in page.split('id="estimate"', 1)[1].split("</p>", 1)[0]
+    assert re.search(r"a contact case on cpu, running for \d+\.\d s:\s+(about \d+\.\d s left|longer than its "
+                     r"estimate of 2\.0 s)", page)
+    assert "Your first waiting case run is next of" in page
+    data = api.client.get(f"/submissions/{mine}/progress.json", headers=api.as_("alice")).json()
+    assert data["phase"] == "waiting" and data["running_ahead"][0]["estimate"]["median_s"] == 2.0
+    # Her own run starts: now she is running, with its time left counted in her own.
+    with new_session() as session:
+        run = session.get(CaseRun, first.id)
+        run.status, run.started_at = CaseRunState.RUNNING, utcnow() - timedelta(seconds=1)
+        session.commit()
+        p = progress.submission_progress(session=session, user=_user(session, "alice"), submission_id=mine)
+    assert p.phase == "running"
+    mine_running = next(r for r in p.runs if r.id == first.id)
+    assert mine_running.running_s >= 1.0
+    assert mine_running.remaining_s == max(0.0, mine_running.estimate.median_s - mine_running.running_s)
+    page = api.client.get(f"/submissions/{mine}/progress", headers=api.as_("alice")).text
+    assert "1 of your case runs is being run now." in page
+    row = page.split(f'id="run-{mine_running.name}"', 1)[1].split("</tr>", 1)[0]
+    assert 'data-state="running"' in row and re.search(r"being run, for \d+\.\d s", row)
+    assert "left" in row or "longer than its estimate" in row
 
 
 def test_the_page_refreshes_without_a_script_and_its_json_carries_the_same_live_part(api):
