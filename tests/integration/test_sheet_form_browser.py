@@ -34,6 +34,8 @@ def test_a_student_fills_checks_and_submits_the_sheet_from_the_form(browser, sta
 
     # Two inputs of the hands-on config changed: Check shows the difference and the one-factor violation.
     page.fill("[id='f-answers.C5.pair_friction']", "0.5")
+    page.click("#held-table_exercise > summary")  # dt is held fixed: read-only until "Change a held field"
+    page.click("#held-table_exercise button.unlock-held")
     page.fill("[id='f-configs.table_exercise.dt']", "0.02")
     page.click("button[value=check]")
     page.wait_for_selector("#one-factor")
@@ -44,11 +46,11 @@ def test_a_student_fills_checks_and_submits_the_sheet_from_the_form(browser, sta
     page.screenshot(path=SHOTS / "sheet_form_one_factor.png", full_page=False)
 
     # Put back, check again (no violation), submit, and the report comes.
-    page.fill("[id='f-configs.table_exercise.dt']", "0.01")
+    page.fill("[id='f-configs.table_exercise.dt']", "0.01")  # opened again: the draft held a changed field
     page.click("button[value=check]")
     page.wait_for_selector("#one-factor")
     assert "one-factor violation" not in page.inner_text("#one-factor")
-    assert "passes every rule" in page.inner_text("#notice")
+    assert "passes every rule" in page.inner_text("#check-summary")
     page.screenshot(path=SHOTS / "sheet_form.png", full_page=True)
     page.click("button[value=submit]")
     page.click("#confirm-submit")  # the confirmation (attempt, lateness, penalty) comes first

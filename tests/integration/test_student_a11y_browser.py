@@ -81,7 +81,7 @@ def test_every_student_page_passes_axe_and_the_form_works_with_the_keyboard_alon
     page.keyboard.type("0.7")
     tab_to(page, "button[value=check]")
     page.keyboard.press("Enter")
-    page.wait_for_selector("#notice:has-text('passes every rule')")
+    page.wait_for_selector("#check-summary:has-text('passes every rule')")
     checked(page, "the sheet form after Check")
     assert page.input_value("[id='f-answers.C5.pair_friction']") == "0.7"
     tab_to(page, "button[value=submit]")

@@ -7,20 +7,24 @@ from __future__ import annotations
 
 import hashlib
 import json
-from typing import Annotated
+import re
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, File, Request, UploadFile, status
 from fastapi.responses import HTMLResponse, PlainTextResponse, RedirectResponse, Response
 from starlette.datastructures import FormData
 
 from grader import dispatch
+from grader import i18n
 from grader.i18n import N_
 from grader.web.deps import SessionDep
 from grader.web.errors import status_of, with_retry_after
 from grader.core.rubrics import course_rubric
 from grader.core.models import Assignment, User, utcnow
 from grader.pages.auth import SignedIn
-from grader.pages.templates import TEMPLATES
+from grader.pages.templates import TEMPLATES, request_locale
 from grader.services.setup import assignments
 from grader.services.submissions import drafts, sheets, submit as submissions
 from grader.services.submissions import sheet_form as form_logic
@@ -100,9 +104,206 @@ def _book(session, user: User, lesson: str):
     return books[user.course_id, lesson]
 
 
+# --- the config editor: each field in words, its unit, and whether the lesson lets it change --------------------------
+
+# A config field's words and unit by its path, digits as "#" (`lanes.#.color.#`): msgids with %(axis)s, %(lane)s
+# (counted from 1) and %(channel)s put in on the page.
+CONFIG_LABELS: dict[str, tuple[str, str]] = {
+    "name": (N_("config name"), ""),
+    "dt": (N_("outer time step dt"), "s"),
+    "substeps": (N_("substeps per outer step"), ""),
+    "duration": (N_("simulated duration"), "s"),
+    "gravity.#": (N_("gravity %(axis)s"), "m/s²"),
+    "enable_collision": (N_("collisions enabled"), ""),
+    "table.size.#": (N_("table size %(axis)s"), "m"),
+    "table.pos.#": (N_("table centre %(axis)s"), "m"),
+    "table.friction": (N_("table friction"), ""),
+    "cube.size": (N_("cube edge"), "m"),
+    "cube.pos.#": (N_("cube start %(axis)s"), "m"),
+    "cube.rho": (N_("cube density"), "kg/m³"),
+    "cube.friction": (N_("cube friction"), ""),
+    "cube.color.#": (N_("cube colour, %(channel)s"), ""),
+    "separation_tolerance": (N_("separation tolerance"), "m"),
+    "upward_speed_tolerance": (N_("upward speed tolerance"), "m/s"),
+    "tail_window": (N_("tail window"), "s"),
+    "cube_size": (N_("cube edge"), "m"),
+    "cube_rho": (N_("cube density"), "kg/m³"),
+    "start_x": (N_("start x"), "m"),
+    "lanes.#.name": (N_("lane %(lane)s name"), ""),
+    "lanes.#.friction": (N_("lane %(lane)s cube friction"), ""),
+    "lanes.#.y": (N_("lane %(lane)s y"), "m"),
+    "lanes.#.color.#": (N_("lane %(lane)s colour, %(channel)s"), ""),
+    "settle_steps": (N_("settling steps before measuring"), ""),
+    "initial_speed": (N_("initial speed"), "m/s"),
+    "stop_speed": (N_("stop speed threshold"), "m/s"),
+    "hold": (N_("stop hold time"), "s"),
+    "seed": (N_("random seed"), ""),
+    "precision": (N_("floating-point precision"), "bits"),
+}
+AXES = ("x", "y", "z")
+# Held fields that are no physics of the experiment: shown after those that are.
+LAST_HELD = ("name", "seed", "precision")
+CHANNELS = (N_("red"), N_("green"), N_("blue"))
+# Fields the one-factor rule never counts (rubric.specs.IGNORED_FIELDS and the visual layer): free to change.
+UNCOUNTED = re.compile(r"^(name|render|cube\.color(\.[0-9]+)?|lanes\.[0-9]+\.color(\.[0-9]+)?)$")
+
+
+@dataclass(frozen=True)
+class ConfigField:
+    """One config input as the editor shows it: its words (a msgid and what goes into it), unit, baseline value, and
+    whether the lesson lets it change (else it is held fixed), or the rule never counts it (a colour, the name)."""
+
+    input: form_logic.Input
+    label: str
+    params: dict
+    unit: str
+    baseline: str
+    changeable: bool
+    counted: bool
+
+    @property
+    def name(self) -> str:
+        return self.input.name
+
+
+def _config_field(book, role: str, field: form_logic.Input) -> ConfigField:
+    path = field.label  # the input's path within its config
+    digits = [int(d) for d in re.findall(r"(?<=\.)[0-9]+(?=\.|$)", path)]
+    pattern = re.sub(r"(?<=\.)[0-9]+(?=\.|$)", "#", path)
+    label, unit = CONFIG_LABELS.get(pattern, (path, ""))
+    params: dict[str, Any] = {}
+    if pattern.startswith("lanes.#"):
+        params["lane"] = digits.pop(0) + 1
+    if digits and pattern.endswith("color.#"):
+        params["channel"] = CHANNELS[digits[0]] if digits[0] < 3 else str(digits[0])
+    elif digits:
+        params["axis"] = AXES[digits[0]] if digits[0] < 3 else str(digits[0])
+    baseline = "" if field.default is None else form_logic.form_text(field.default)
+    return ConfigField(field, label, params, unit, baseline, form_logic.may_change(book, role, path),
+                       UNCOUNTED.match(path) is None)
+
+
+def _config_fields(book, role: str, sheet: dict) -> list[ConfigField]:
+    """The role's config fields, those the lesson lets change first (in the rule's order), then the held ones."""
+    fields = [_config_field(book, role, f) for f in form_logic.config_inputs(book, role, sheet)]
+    order = book.configs[role].may_change
+    first = sorted((f for f in fields if f.changeable),
+                   key=lambda f: next((n for n, m in enumerate(order) if f.input.label == m
+                                       or f.input.label.startswith(m + ".")), len(order)))
+    held = [f for f in fields if not f.changeable]
+    return first + sorted(held, key=lambda f: f.input.label in LAST_HELD)  # stable: the physics first, as declared
+
+
+def _held_changed(fields: list[ConfigField], values: dict) -> bool:
+    """Whether a counted held field differs from its baseline as the draft stands."""
+    return any(not f.changeable and f.counted and f.input.default is not None
+               and values.get(f.name) != f.baseline for f in fields)
+
+
+# --- refusals in the reader's words -----------------------------------------------------------------------------------
+
+_AT = r"(?P<{}>[0-9T:+\-.]+)(?: \([^)]*\))?"
+# grader.services.setup.assignments.admit's refusals, read back into what the page words itself: the assignment by
+# its title, times in the course's zone as the reader's locale writes them, counts with their plural forms.
+_ADMIT_REFUSALS = [
+    ("opens", re.compile(rf"^assignment [0-9]+ opens at {_AT.format('at')}; it is {_AT.format('now')}$")),
+    ("closed", re.compile(rf"^assignment [0-9]+ closed at {_AT.format('at')} \(its hard close\); "
+                          rf"it is {_AT.format('now')}$")),
+    ("closed_extension", re.compile(rf"^assignment [0-9]+ closed at {_AT.format('at')} \(your extension's hard "
+                                    rf"close\); it is {_AT.format('now')}$")),
+    ("attempts", re.compile(r"^assignment [0-9]+ allows (?P<n>[0-9]+) attempts; (?P<used>[0-9]+) already submitted$")),
+    ("per_hour", re.compile(rf"^assignment [0-9]+ allows (?P<n>[0-9]+) submissions per hour; (?P<k>[0-9]+) in the "
+                            rf"last hour, the next is allowed at {_AT.format('at')}$")),
+]
+
+
+def _read_rule(rule: str) -> dict | None:
+    """An assignment's refusal as its parts ({kind, at, now, n, used, k}: times aware, counts int), or None for a
+    rule the page shows as it is."""
+    for kind, pattern in _ADMIT_REFUSALS:
+        found = pattern.match(rule or "")
+        if found:
+            parts: dict[str, Any] = {"kind": kind}
+            for key, value in found.groupdict().items():
+                try:
+                    parts[key] = datetime.fromisoformat(value) if key in ("at", "now") else int(value)
+                except ValueError:
+                    return None
+            return parts
+    return None
+
+
+# Fields a refusal names that the page words by its rule alone: the assignment (its title is in the rule) and the
+# per-person quotas (the rule says which).
+UNLABELLED = ("assignment_id", "submissions", "draft", "draft saves")
+
+
+def _field_label(field: str, items, configs: dict[str, list[ConfigField]], gettext, lesson_word
+                 ) -> tuple[str, str, str]:
+    """(words, input id, the rest of the path no input names) of the field an error names: `answers.A2.direction`
+    -> ("A2 direction", its first input, ""); a key inside a config that no input shows -> its config's words, the
+    config's section and the key (`a.b`)."""
+    path = field.removeprefix("sheet.")
+    if path in UNLABELLED:
+        return "", "", ""
+    if path in ("student", "file"):
+        words = {"student": gettext(N_("student (your name on the sheet)")), "file": gettext(N_("YAML file"))}[path]
+        return words, {"student": "f-student", "file": "yaml-file"}[path], ""
+    for item in items:
+        for i in item.inputs:
+            if path == i.name or path.startswith(i.name + "."):
+                anchor = f"f-{i.name}.value" if i.widget in ("quantity", "stop") else f"f-{i.name}"
+                return f"{item.id} {lesson_word('labels', i.label)}", anchor, ""
+        if path == f"answers.{item.id}" or path.startswith(f"answers.{item.id}."):
+            return item.id, f"item-{item.id}", path.removeprefix(f"answers.{item.id}").lstrip(".")
+    for role, fields in configs.items():
+        for f in fields:
+            if path == f.name or path.startswith(f.name + "."):
+                label = gettext(f.label, **{k: gettext(v) if k == "channel" else v for k, v in f.params.items()})
+                return f"{lesson_word('roles', role.replace('_', ' '))}: {label}", f"f-{f.name}", ""
+        if path == f"configs.{role}" or path.startswith(f"configs.{role}."):
+            return (lesson_word("roles", role.replace("_", " ")), f"config-{role}",
+                    path.removeprefix(f"configs.{role}").lstrip("."))
+    return "", "", path
+
+
+def _words(request: Request):
+    """The request's gettext for a page module's own words: `say(msgid, **values)`, and the lesson's words."""
+    locale = request_locale(request)
+
+    def say(msgid: str, **values) -> str:
+        text = i18n.gettext(locale, msgid)
+        return text % values if values else text
+
+    return say, lambda section, text: i18n.lesson_word(locale, section, text)
+
+
+def _summary(request: Request, items, configs: dict[str, list[ConfigField]], errors: list[dict], checks: list,
+             refusal: DomainError | None, checked: bool) -> dict | None:
+    """What the top of the page says after Check or a refused Submit: each error with its field's words and a link
+    to its input, each config's verdict with the items it voids, and whether the sheet passes every rule (only when
+    nothing is wrong and no config breaks the one-factor rule)."""
+    if not checked and refusal is None:
+        return None
+    say, lesson_word = _words(request)
+    rows, seen = [], set()
+    for error in errors:
+        if (error["field"], error["rule"]) in seen:  # each message once
+            continue
+        seen.add((error["field"], error["rule"]))
+        words, anchor, rest = _field_label(error["field"], items, configs, say, lesson_word)
+        rows.append({"label": words, "href": anchor, "code": rest, "rule": error["rule"],
+                     "read": _read_rule(error["rule"])})
+    broken = [c for c in checks if c.violations]
+    return {"errors": rows, "checks": checks, "broken": broken,
+            "detail": refusal.detail if refusal is not None and not rows else None,
+            "passes": checked and refusal is None and not rows and not broken}
+
+
 def _render(request: Request, session, user: User, assignment: Assignment | None, sheet: dict, *,
             errors: list[dict] | None = None, checked: bool = False, notice: str | None = None,
-            refusal: DomainError | None = None, code: int = status.HTTP_200_OK) -> HTMLResponse:
+            refusal: DomainError | None = None, code: int = status.HTTP_200_OK,
+            unlock: str | None = None, submitting: bool = False) -> HTMLResponse:
     part, lesson = _part_and_lesson(assignment)
     if too_large := sheets.size_problems(sheet):  # a draft saved before the caps held: never rendered input by input
         refusal = refusal or Invalid(OVER_CAPS, too_large)
@@ -111,7 +312,7 @@ def _render(request: Request, session, user: User, assignment: Assignment | None
     ids = assignments.item_ids(lesson, part)
     items = form_logic.item_forms(book, ids)
     book_configs = book if form_logic.has_configs(part) else None
-    configs = ({role: form_logic.config_inputs(book, role, sheet) for role in form_logic.FORM_CONFIGS}
+    configs = ({role: _config_fields(book, role, sheet) for role in form_logic.FORM_CONFIGS}
                if book_configs else {})
     checks = []
     if checked and book_configs is not None:
@@ -119,16 +320,30 @@ def _render(request: Request, session, user: User, assignment: Assignment | None
         shown = {(e["field"], e["rule"]) for e in errors or []}  # a set: one pass, whatever the number of errors
         errors = (errors or []) + [e for e in config_errors if (e["field"], e["rule"]) not in shown]
     names = (["file", "student"] + [i.name for item in items for i in item.inputs]
-             + [i.name for inputs in configs.values() for i in inputs])
+             + [f.name for fields in configs.values() for f in fields])
     placed, unplaced = form_logic.by_input(errors or [], names)
     extra_roles = sorted(set((sheet.get("configs") or {}) if isinstance(sheet.get("configs"), dict) else ())
                          - set(form_logic.FORM_CONFIGS))
+    values = form_logic.form_state(sheet, items, book_configs)
+    # A role's held fields are editable when asked for (the "change a held field" button without the script), when
+    # the draft already changed one, or when an error sits in one.
+    changed_roles = {role for role, fields in configs.items() if _held_changed(fields, values)}
+    unlocked = changed_roles | {role for role, fields in configs.items()
+                                if role == unlock or any(not f.changeable and f.name in placed for f in fields)}
+    voids = (form_logic.held_voids(session=session, sheet=sheet, part=part, book=book)
+             if book_configs is not None else {})
+    standing = _standing(session, user, assignment)
+    summary = _summary(request, items, configs, errors or [], checks, refusal, checked)
     return TEMPLATES.TemplateResponse(request, "submissions/sheet_form.html", {
         "user": user, "a": assignment, "part": part, "lesson": lesson, "path": _path(assignment), "items": items,
         "configs": configs, "rules": {role: book.configs[role] for role in configs}, "extra_roles": extra_roles,
-        "values": form_logic.form_state(sheet, items, book_configs), "placed": placed, "unplaced": unplaced,
-        "checked": checked, "checks": checks, "notice": notice, "refusal": refusal,
-        "standing": _standing(session, user, assignment),
+        "values": values, "placed": placed, "unplaced": unplaced, "unlocked": unlocked, "voids": voids,
+        "changed_roles": changed_roles, "submitting": submitting,
+        "checked": checked, "checks": checks, "notice": notice, "refusal": refusal, "summary": summary,
+        # the rule that refuses a submission now, said once: in the summary when a Submit was refused by it
+        "standing": standing, "standing_read": _read_rule(standing.get("refused")) if standing else None,
+        "standing_shown": not (refusal is not None and standing and standing.get("refused")
+                               and any(e.get("field") == "assignment_id" for e in refusal.errors)),
         "has_last": drafts.last_submitted(session=session, user=user, assignment=assignment) is not None,
     }, status_code=code)
 
@@ -169,20 +384,41 @@ def _precheck(session, user: User, assignment: Assignment | None, sheet: dict) -
     return Invalid("invalid sheet", problems) if problems else None
 
 
+def _config_verdicts(session, assignment: Assignment | None, user: User, sheet: dict) -> list:
+    """The one-factor verdict of each of the sheet's configs, with the items each broken one voids (the Check's)."""
+    part, lesson = _part_and_lesson(assignment)
+    if not form_logic.has_configs(part):
+        return []
+    checks, _ = form_logic.config_checks(session=session, sheet=sheet, part=part,
+                                         book=_book(session, user, lesson))
+    return checks
+
+
 def _confirmation(request: Request, session, user: User, assignment: Assignment | None, sheet: dict, *,
-                  notice: str | None = None) -> HTMLResponse:
-    """The step between the form and the submission: the attempt it will be, how late, the penalty, and the two ways
+                  notice: str | None = None, missing_consent: bool = False) -> HTMLResponse:
+    """The step between the form and the submission: the attempt it will be, how late, the penalty, any config the
+    one-factor rule voids (with the items; submitting then takes an explicit second confirmation), and the two ways
     on (submit this draft, or back to the form with the draft kept)."""
     part, lesson = _part_and_lesson(assignment)
+    standing = _standing(session, user, assignment)
+    checks = _config_verdicts(session, assignment, user, sheet)
     return TEMPLATES.TemplateResponse(request, "submissions/submit_confirm.html", {
         "user": user, "a": assignment, "part": part, "lesson": lesson, "path": _path(assignment),
-        "standing": _standing(session, user, assignment), "digest": sheet_digest(sheet), "notice": notice,
-        "questions": len(assignments.item_ids(lesson, part)),
-    })
+        "standing": standing, "standing_read": _read_rule(standing.get("refused")) if standing else None,
+        "digest": sheet_digest(sheet), "notice": notice,
+        "questions": len(assignments.item_ids(lesson, part)), "broken": [c for c in checks if c.violations],
+        "missing_consent": missing_consent,
+    }, status_code=status.HTTP_422_UNPROCESSABLE_ENTITY if missing_consent else status.HTTP_200_OK)
+
+
+# The confirmation's checkbox a student ticks to submit configs the one-factor rule voids.
+CONSENT = "accept_voids"
 
 
 def _confirmed(request: Request, session, user: User, assignment: Assignment | None, form: FormData) -> Response:
-    """Submit the saved draft the confirmation named; a draft or attempt changed since is confirmed again."""
+    """Submit the saved draft the confirmation named; a draft or attempt changed since is confirmed again, and a
+    draft whose configs break the one-factor rule only with the confirmation's second tick (else it is shown again,
+    the tick named, the draft kept)."""
     sheet = _draft_sheet(session, user, assignment)
     standing = _standing(session, user, assignment)
     if form.get("digest") != sheet_digest(sheet):
@@ -192,6 +428,8 @@ def _confirmed(request: Request, session, user: User, assignment: Assignment | N
     if standing and standing.get("attempt") and str(standing["attempt"]) != form.get("attempt"):
         return _confirmation(request, session, user, assignment, sheet, notice=N_(
             "Another submission was made meanwhile: this one would now take the attempt named below."))
+    if form.get(CONSENT) != "yes" and any(c.violations for c in _config_verdicts(session, assignment, user, sheet)):
+        return _confirmation(request, session, user, assignment, sheet, missing_consent=True)
     try:
         submission = submissions.submit(session=session, user=user, sheet=sheet,
                                         assignment_id=assignment.id if assignment else None, sender=dispatch)
@@ -200,7 +438,7 @@ def _confirmed(request: Request, session, user: User, assignment: Assignment | N
     except DomainError as exc:  # the rule beside the form; the draft stays as it was
         session.rollback()
         return with_retry_after(_render(request, session, user, assignment, sheet, errors=exc.errors, refusal=exc,
-                                        code=status_of(exc), checked=True), exc)
+                                        code=status_of(exc), checked=True, submitting=True), exc)
     return RedirectResponse(f"/submissions/{submission.id}/progress", status_code=status.HTTP_303_SEE_OTHER)
 
 
@@ -229,24 +467,28 @@ def _act(request: Request, session, user: User, assignment: Assignment | None, f
         name = f"sheet-{assignment.id}.yaml" if assignment is not None else "sheet.yaml"
         return PlainTextResponse(form_logic.sheet_yaml(sheet), media_type="application/yaml",
                                  headers={"Content-Disposition": f'attachment; filename="{name}"'})
-    if action == "check":
-        problems = form_logic.problems(sheet, part)
-        notice = "The sheet passes every rule a submission checks." if not problems else None
-        return _render(request, session, user, assignment, sheet, errors=problems, checked=True, notice=notice)
+    if action == "check":  # the summary at the top says whether it passes every rule
+        return _render(request, session, user, assignment, sheet, errors=form_logic.problems(sheet, part),
+                       checked=True)
+    if action.startswith("unlock:"):  # "change a held field" without the page's script: the same form, editable
+        return _render(request, session, user, assignment, sheet, unlock=action.removeprefix("unlock:"))
     if action == "submit":  # first the confirmation; a submission it would refuse says the rule beside the form
         refusal = _precheck(session, user, assignment, sheet)
         if refusal is not None:
             return with_retry_after(_render(request, session, user, assignment, sheet, errors=refusal.errors,
-                                            refusal=refusal, code=status_of(refusal), checked=True), refusal)
+                                            refusal=refusal, code=status_of(refusal), checked=True,
+                                            submitting=True), refusal)
         return _confirmation(request, session, user, assignment, sheet)
     return _render(request, session, user, assignment, sheet, notice="Draft saved.")
 
 
-def _save_draft(session, user: User, assignment: Assignment | None, form: FormData) -> Response:
-    """The page's script saves as the student types; no page comes back, only when it was saved."""
+def _save_draft(request: Request, session, user: User, assignment: Assignment | None, form: FormData) -> Response:
+    """The page's script saves as the student types; no page comes back, only when it was saved: in the course's
+    time zone, as the reader's locale writes times."""
     sheet = _posted_sheet(session, user, assignment, form)
     draft = drafts.save(session=session, user=user, assignment=assignment, sheet=sheet)
-    return PlainTextResponse(f"saved {draft.updated_at.isoformat(timespec='seconds')} UTC")
+    when = i18n.local_time(draft.updated_at, user.course.timezone, request_locale(request), seconds=True)
+    return PlainTextResponse(f"saved {when}")
 
 
 def _import(request: Request, session, user: User, assignment: Assignment | None, file: UploadFile) -> Response:
@@ -287,8 +529,9 @@ def assignment_sheet_action(request: Request, assignment: MembersAssignment, ses
 
 
 @router.post("/assignments/{assignment_id}/sheet/draft")
-def assignment_draft(assignment: MembersAssignment, session: SessionDep, user: Writer, form: Posted):
-    return _save_draft(session, user, assignment, form)
+def assignment_draft(request: Request, assignment: MembersAssignment, session: SessionDep, user: Writer,
+                     form: Posted):
+    return _save_draft(request, session, user, assignment, form)
 
 
 @router.post("/assignments/{assignment_id}/sheet/import", response_class=HTMLResponse)
@@ -308,8 +551,8 @@ def free_sheet_action(request: Request, session: SessionDep, user: Writer, form:
 
 
 @router.post("/sheet/draft")
-def free_draft(session: SessionDep, user: Writer, form: Posted):
-    return _save_draft(session, user, None, form)
+def free_draft(request: Request, session: SessionDep, user: Writer, form: Posted):
+    return _save_draft(request, session, user, None, form)
 
 
 @router.post("/sheet/import", response_class=HTMLResponse)

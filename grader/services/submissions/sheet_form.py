@@ -9,6 +9,7 @@ that path, lands beside its input.
 from __future__ import annotations
 
 import math
+import re
 import types
 import typing
 import dataclasses
@@ -38,6 +39,7 @@ FORM_CONFIGS = ("table_exercise", "extension")
 # Config fields that are no physics a student chooses: the case kind, and staff-only or evidence switches.
 HIDDEN_CONFIG_FIELDS = ("kind", "backend", "render")
 YAML_MAX_DEPTH = 32
+INTEGER_TEXT = re.compile(r"^[+-]?[0-9]+$")
 
 
 @dataclass(frozen=True)
@@ -151,23 +153,48 @@ def config_values(book: Rubric, role: str, sheet: dict) -> dict[str, Any]:
     return flatten({k: v for k, v in merged.items() if k not in HIDDEN_CONFIG_FIELDS}, f"configs.{role}")
 
 
+def _field_choices(spec_type: type[BaseModel], path: str) -> tuple[str, ...]:
+    """A top-level config field's choices when its type is a Literal (precision "32" or "64"); else none."""
+    info = spec_type.model_fields.get(path)
+    return (_choices(info.annotation) or ()) if info is not None and "." not in path else ()
+
+
+def may_change(book: Rubric, role: str, path: str) -> bool:
+    """Whether the role's one-factor rule lets the config field at `path` (`table.friction`) differ from its
+    baseline."""
+    return any(path == field or path.startswith(field + ".") for field in book.configs[role].may_change)
+
+
 def config_inputs(book: Rubric, role: str, sheet: dict) -> list[Input]:
     """One input per field of the config, in the form `configs.ROLE.table.friction`: the baseline case's fields, and
-    any more the draft has (a third lane from a YAML), each asked as its value's type."""
+    any more the draft has (a third lane from a YAML), each asked as its baseline value's type (a float field stays a
+    float field whatever the draft holds), its choices where the field has them."""
     widgets = {bool: "radio", int: "integer", float: "number"}
-    defaults = flatten(_dump(config_baseline(book, role)), f"configs.{role}")
-    return [Input(name, name.removeprefix(f"configs.{role}."), widgets.get(type(value), "text"),
-                  ("true", "false") if isinstance(value, bool) else (), default=defaults.get(name))
-            for name, value in config_values(book, role, sheet).items()]
+    baseline = config_baseline(book, role)
+    defaults = flatten(_dump(baseline), f"configs.{role}")
+    inputs = []
+    for name, value in config_values(book, role, sheet).items():
+        path = name.removeprefix(f"configs.{role}.")
+        typed = defaults.get(name, value)
+        if isinstance(value, bool) or isinstance(typed, bool):
+            widget, choices = "radio", ("true", "false")
+        elif choices := _field_choices(type(baseline), path):
+            widget = "radio"
+        else:
+            widget, choices = widgets.get(type(typed), "text"), ()
+        inputs.append(Input(name, path, widget, choices, default=defaults.get(name)))
+    return inputs
 
 
 # --- form values <-> sheet --------------------------------------------------------------------------------------------
 
 def _number(text: str, integer: bool) -> Any:
-    """The number typed, or the text itself when it is none: the sheet's own validation then names the field."""
+    """The number typed, or the text itself when it is none: the sheet's own validation then names the field. A
+    whole number typed where a float is asked stays an integer (`1`, not `1.0`), so a sheet's YAML comes back from
+    the form with the types it went in with; the sheet's float fields take it as it is."""
     text = text.strip()
     try:
-        value = int(text) if integer else float(text)
+        value = int(text) if integer or INTEGER_TEXT.match(text) else float(text)
     except ValueError:
         return text
     return value if math.isfinite(value) else text
@@ -280,6 +307,11 @@ def form_state(sheet: dict, items: list[ItemForm], book: Rubric | None) -> dict[
     return values
 
 
+def form_text(value: Any) -> str:
+    """A sheet's value as its input shows it: floats as Python writes them (0.5, 1.0), integers as integers."""
+    return _text(value)
+
+
 def _text(value: Any) -> str:
     if value is None:
         return ""
@@ -375,6 +407,12 @@ def _voided(session: Session, sheet: dict, part: str, book: Rubric) -> dict[str,
         parsed = sheets.parse_sheet(sheet, part)
     except ValidationError:
         return {}
+    results = _lesson_results(session)
+    return _voids_of(parsed, results, book) if results is not None else {}
+
+
+def _lesson_results(session: Session) -> dict | None:
+    """The lesson's own cases as stored (their results by name), or None while one was never measured."""
     results = {}
     for name in LESSON_RUNS:
         spec = BASELINE_CASES[name]
@@ -383,16 +421,49 @@ def _voided(session: Session, sheet: dict, part: str, book: Rubric) -> dict[str,
         found = session.scalar(select(Measurement).where(Measurement.content_key == content_key.content_key(inputs)))
         run = session.get(CaseRun, found.case_run_id) if found is not None else None
         if run is None:
-            return {}
+            return None
         try:
             results[name] = stored_result(run)
         except LookupError:
-            return {}
+            return None
+    return results
+
+
+def _voids_of(parsed: PredictionSheet, results: dict, book: Rubric) -> dict[str, list[str]]:
     voided: dict[str, list[str]] = {}
     for item in rubric.grade_sheet(parsed, results, book).items:
         if item.verdict == "one_factor_violation":  # the rule stopped at the broken config, its finding as measured
             voided.setdefault(item.measured, []).append(item.id)
     return voided
+
+
+def held_voids(*, session: Session, sheet: dict, part: str, book: Rubric) -> dict[str, list[str]]:
+    """For each config the form edits, the items the grader would void if one of its held fields changed (any one:
+    a broken config is never run, so every item reading its run is voided alike). Told by grading the sheet with
+    that config's seed moved, on the lesson's cases as stored; a role is absent while the sheet is invalid or the
+    lesson's cases were never measured."""
+    if not isinstance(sheet.get("configs"), dict):
+        return {}
+    try:
+        sheets.parse_sheet(sheet, part)
+    except ValidationError:
+        return {}
+    results = _lesson_results(session)
+    if results is None:
+        return {}
+    out = {}
+    for role in FORM_CONFIGS:
+        own = sheet["configs"].get(role)
+        if not isinstance(own, dict) or may_change(book, role, "seed"):
+            continue
+        probe = dict(sheet, configs={**sheet["configs"], role: {**own, "seed": int(own.get("seed") or 0) + 1}})
+        try:
+            parsed = sheets.parse_sheet(probe, part)
+        except (ValidationError, TypeError, ValueError):
+            continue
+        out[role] = sorted({i for finding, ids in _voids_of(parsed, results, book).items()
+                            if finding.startswith(f"{role} vs ") for i in ids})
+    return out
 
 
 # --- YAML -------------------------------------------------------------------------------------------------------------

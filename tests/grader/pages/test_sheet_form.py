@@ -207,7 +207,7 @@ def test_a_refused_submission_names_the_rule_and_keeps_the_draft(api):
     refused = api.client.post(f"/assignments/{aid}/sheet", headers=api.as_("alice"),
                               data={**fields, "action": "submit"})
     assert refused.status_code == 409, refused.text
-    assert 'id="refusal"' in refused.text and f"assignment {aid} opens at" in refused.text
+    assert 'id="check-summary"' in refused.text and refused.text.count("Checkpoints opens at ") == 1
     kept = api.client.get(f"/assignments/{aid}/sheet", headers=api.as_("alice"))
     assert 'name="answers.C6.pair_rule" value="max" checked' in kept.text
 
@@ -276,3 +276,110 @@ def test_another_site_cannot_save_a_students_draft(api):
     # Nobody signed in: the sign-in form, nothing saved.
     anonymous = api.client.post("/sheet/draft", data=fields, follow_redirects=False)
     assert anonymous.status_code == 303 and anonymous.headers["location"].startswith("/sign-in")
+
+
+# --- issue 33: check results at the top, the config editor, integer round trip, the draft's time ----------------------
+
+def _top(page: str) -> str:
+    """The check summary at the top of the page (before the YAML import and the form)."""
+    assert page.index('id="check-summary"') < page.index('id="yaml"') < page.index('id="sheet-form"')
+    return page.split('id="check-summary"', 1)[1].split("</div>", 1)[0]
+
+
+def test_check_puts_each_error_at_the_top_with_a_link_to_its_field_in_words(api):
+    bad = reference_sheet()
+    bad["answers"]["C5"]["pair_friction"] = "lots"
+    del bad["answers"]["A2"]["direction"]
+    page = import_yaml(api, yaml.safe_dump(bad))
+    checked = api.client.post("/sheet", headers=api.as_("alice"), data={**form_fields(page.text), "action": "check"})
+    top = _top(checked.text)
+    assert 'role="alert" tabindex="-1"' in checked.text.split('id="check-summary"', 1)[1][:60]
+    assert "2 problems stop this sheet from being taken" in top
+    assert '<a href="#f-answers.C5.pair_friction">C5 pair friction</a>' in top
+    assert '<a href="#f-answers.A2.direction">A2 direction</a>' in top
+    assert 'id="f-answers.A2.direction"' in checked.text and 'id="f-answers.C5.pair_friction"' in checked.text
+    assert "sheet.answers" not in top and "passes every rule" not in checked.text
+
+
+def test_a_one_factor_violation_is_at_the_top_and_the_sheet_passes_only_without_one(api):
+    page = import_yaml(api, REFERENCE_YAML.read_text())
+    broken = api.client.post("/sheet", headers=api.as_("alice"), data={
+        **form_fields(page.text, **{"configs.table_exercise.dt": "0.02"}), "action": "check"})
+    top = _top(broken.text)
+    assert "passes every rule" not in broken.text
+    assert '<a href="#check-table_exercise">table exercise vs friction-baseline</a>' in top
+    assert "one-factor violation" in top and "dt may not change" in top
+    assert "every item that compares its run is voided" in top  # the lesson's cases are not measured here
+    assert '<a href="#check-extension">extension vs N1</a>' in top and "verdict-ok" in top
+    fine = api.client.post("/sheet", headers=api.as_("alice"), data={**form_fields(page.text), "action": "check"})
+    top = _top(fine.text)
+    assert "The sheet passes every rule a submission checks." in top and "one-factor violation" not in top
+
+
+def test_the_config_editor_shows_the_fields_the_lesson_lets_change_and_holds_the_rest(api):
+    page = api.client.get("/sheet", headers=api.as_("alice")).text
+    section = page.split('id="config-table_exercise"', 1)[1].split("</section>", 1)[0]
+    free, held = section.split('<details class="held" id="held-table_exercise">', 1)
+    # The one field the hands-on exercise changes comes first, editable, in words, with its baseline beside it.
+    assert '<label for="f-configs.table_exercise.table.friction">table friction</label>' in free
+    assert 'name="configs.table_exercise.table.friction" value="0.5" data-baseline="0.5">' in free
+    assert "baseline 0.5" in free and "the hands-on exercise changes only table friction" in section
+    assert free.count("<input") == 1
+    # Every other field is held fixed: read-only, in words with units, choices as selects, behind a button.
+    assert 'name="configs.table_exercise.dt" value="0.01" readonly' in held
+    assert 'gravity z <span class="unit">(m/s²)</span>' in held and "lane 1 colour, red" in held
+    assert "lane 2 cube friction" in held and "gravity.2" not in held.replace("gravity.2\"", "")
+    assert '<select id="f-configs.table_exercise.precision" disabled' in held
+    assert '<input type="hidden" name="configs.table_exercise.precision" value="32"' in held
+    assert 'value="unlock:table_exercise"' in held
+    assert 'id="held-warning-table_exercise" role="status" hidden' in section
+    # The extension may change dt and substeps, in the rule's order.
+    ext = page.split('id="config-extension"', 1)[1].split("<details", 1)[0]
+    assert ext.index('f-configs.extension.dt"') < ext.index('f-configs.extension.substeps"')
+    # Without the script, "Change a held field" gives the same form with the held fields editable.
+    unlocked = api.client.post("/sheet", headers=api.as_("alice"),
+                               data={**form_fields(page), "action": "unlock:table_exercise"})
+    held = unlocked.text.split('id="held-table_exercise" open>', 1)[1].split("</details>", 1)[0]
+    assert "readonly" not in held and 'name="configs.table_exercise.precision"' in held
+
+
+def test_a_held_field_the_draft_changed_is_shown_open_with_what_it_voids(api):
+    sheet = reference_sheet()
+    sheet["configs"]["table_exercise"]["dt"] = 0.02
+    page = import_yaml(api, yaml.safe_dump(sheet, sort_keys=False)).text
+    section = page.split('id="config-table_exercise"', 1)[1].split("</section>", 1)[0]
+    assert '<details class="held" id="held-table_exercise" open>' in section
+    assert 'id="held-warning-table_exercise" role="status">' in section  # not hidden
+    assert "voids every item that compares this config's run" in section
+    assert 'name="configs.table_exercise.dt" value="0.02" data-baseline="0.01"' in section
+
+
+def test_the_forms_yaml_keeps_integers_as_integers(api):
+    sheet = reference_sheet()
+    sheet["answers"]["C1"]["substep_dt"]["value"] = 1
+    sheet["answers"]["C1"]["substep_dt"]["unit"] = "ms"
+    sheet["configs"]["table_exercise"]["table"]["friction"] = 1
+    text = yaml.safe_dump(sheet, sort_keys=False)
+    page = import_yaml(api, text)
+    exported = api.client.post("/sheet", headers=api.as_("alice"), data={**form_fields(page.text), "action": "export"})
+    back = yaml.safe_load(exported.text)
+    assert back == yaml.safe_load(text)
+    assert type(back["answers"]["C1"]["substep_dt"]["value"]) is int and "value: 1\n" in exported.text
+    assert type(back["configs"]["table_exercise"]["table"]["friction"]) is int
+    # A float typed stays a float, and a float field typed as a whole number is still taken by the sheet's rules.
+    typed = api.client.post("/sheet", headers=api.as_("alice"), data={
+        **form_fields(page.text, **{"answers.C1.substep_dt.value": "2.0"}), "action": "export"})
+    assert yaml.safe_load(typed.text)["answers"]["C1"]["substep_dt"]["value"] == 2.0
+    assert "value: 2.0" in typed.text
+
+
+def test_the_draft_saved_time_is_in_the_courses_zone_and_the_readers_language(api):
+    assert api.client.patch("/v1/courses/l03", json={"timezone": "Asia/Kolkata"},
+                            headers=api.as_("prof")).status_code == 200
+    page = api.client.get("/sheet", headers=api.as_("alice"))
+    saved = api.client.post("/sheet/draft", headers=api.as_("alice"), data=form_fields(page.text))
+    assert saved.status_code == 200 and saved.text.startswith("saved ") and saved.text.endswith(" IST"), saved.text
+    assert "UTC" not in saved.text and "T" not in saved.text.removeprefix("saved ").removesuffix(" IST")
+    chinese = api.client.post("/sheet/draft", headers={**api.as_("alice"), "Accept-Language": "zh-CN"},
+                              data=form_fields(page.text))
+    assert "年" in chinese.text and chinese.text.endswith(" IST"), chinese.text

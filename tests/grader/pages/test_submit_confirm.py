@@ -119,7 +119,14 @@ def _refusal(api, aid: int, fields: dict, rule: str, code: int) -> None:
     before = len(submissions_of("alice"))
     refused = press(api, aid, {**fields, "answers.C6.pair_rule": "max", "action": "submit"})
     assert refused.status_code == code, refused.text
-    assert 'id="refusal"' in refused.text and rule in refused.text and "Your draft is kept." in refused.text
+    assert 'id="check-summary"' in refused.text and "Your draft is kept." in refused.text
+    # The rule once, at the top, in the reader's words: the assignment's title, not its number or the API's field
+    # name, times in the course's zone as the page writes dates (no ISO 8601), counts with their plural forms.
+    assert refused.text.count(rule) == 1, refused.text
+    summary = refused.text.split('id="check-summary"', 1)[1].split("</div>", 1)[0]
+    assert rule in summary and "Not submitted" in summary
+    assert "assignment_id" not in refused.text and f"assignment {aid}" not in refused.text
+    assert not re.search(r"[0-9]{4}-[0-9]{2}-[0-9]{2}T[0-9]{2}:", refused.text)
     assert 'id="confirm-form"' not in refused.text
     assert len(submissions_of("alice")) == before
     kept = api.client.get(f"/assignments/{aid}/sheet", headers=api.as_("alice"))
@@ -128,12 +135,12 @@ def _refusal(api, aid: int, fields: dict, rule: str, code: int) -> None:
 
 def test_not_open_yet_is_refused_with_the_opening_time(api):
     aid = create(api, open_at=at(1), due_at=at(2), hard_close_at=at(3)).json()["id"]
-    _refusal(api, aid, checkpoint_form(api, aid), f"assignment {aid} opens at", 409)
+    _refusal(api, aid, checkpoint_form(api, aid), "Checkpoints opens at ", 409)
 
 
 def test_after_the_hard_close_is_refused_with_the_close(api):
     aid = create(api, open_at=at(-3), due_at=at(-2), hard_close_at=at(-1)).json()["id"]
-    _refusal(api, aid, checkpoint_form(api, aid), f"assignment {aid} closed at", 409)
+    _refusal(api, aid, checkpoint_form(api, aid), "Checkpoints closed at ", 409)
 
 
 def test_the_attempt_limit_is_refused_naming_it(api):
@@ -141,7 +148,7 @@ def test_the_attempt_limit_is_refused_naming_it(api):
     fields = checkpoint_form(api, aid)
     shown = press(api, aid, {**fields, "action": "submit"})
     assert press(api, aid, confirm_fields(shown.text), follow_redirects=False).status_code == 303
-    _refusal(api, aid, fields, f"assignment {aid} allows 1 attempts; 1 already submitted", 409)
+    _refusal(api, aid, fields, "Checkpoints allows 1 attempt and you have submitted 1.", 409)
 
 
 def test_the_hourly_limit_is_refused_with_the_next_allowed_time(api):
@@ -149,7 +156,8 @@ def test_the_hourly_limit_is_refused_with_the_next_allowed_time(api):
     fields = checkpoint_form(api, aid)
     shown = press(api, aid, {**fields, "action": "submit"})
     assert press(api, aid, confirm_fields(shown.text), follow_redirects=False).status_code == 303
-    _refusal(api, aid, fields, "allows 1 submissions per hour; 1 in the last hour, the next is allowed at", 429)
+    _refusal(api, aid, fields, "Checkpoints allows 1 submission per hour; 1 in the last hour. The next is allowed at ",
+             429)
 
 
 def test_a_confirmation_outlived_by_the_hard_close_is_refused_at_submit_and_keeps_the_draft(api):
@@ -164,8 +172,8 @@ def test_a_confirmation_outlived_by_the_hard_close_is_refused_at_submit_and_keep
         session.get(Assignment, aid).hard_close_at = utcnow() - timedelta(minutes=1)
         session.commit()
     refused = press(api, aid, confirm_fields(shown.text))
-    assert refused.status_code == 409 and f"assignment {aid} closed at" in refused.text
-    assert 'id="refusal"' in refused.text and submissions_of("alice") == []
+    assert refused.status_code == 409 and refused.text.count("Checkpoints closed at ") == 1
+    assert 'id="check-summary"' in refused.text and submissions_of("alice") == []
     assert form_fields(api.client.get(f"/assignments/{aid}/sheet", headers=api.as_("alice")).text) == fields
 
 
@@ -183,3 +191,39 @@ def test_another_site_cannot_confirm_a_submission(api):
     refused = api.client.post(f"/assignments/{aid}/sheet", data=confirm_fields(shown.text),
                               headers={**api.as_("alice"), "Sec-Fetch-Site": "cross-site"})
     assert refused.status_code == 403 and submissions_of("alice") == []
+
+
+def test_a_one_factor_violation_is_repeated_on_the_confirmation_and_needs_a_second_tick(api):
+    """Issue 33: the confirmation names the broken config and the items it voids; submitting it takes the tick
+    "I submit knowing these items will be voided", whose absence refuses naming it, the draft kept."""
+    from tests.factories import REFERENCE_YAML
+    from tests.grader.pages.test_sheet_form import import_yaml
+
+    page = import_yaml(api, REFERENCE_YAML.read_text())
+    shown = api.client.post("/sheet", headers=api.as_("alice"), data={
+        **form_fields(page.text, **{"configs.table_exercise.dt": "0.02"}), "action": "submit"})
+    assert shown.status_code == 200, shown.text
+    voids = shown.text.split('id="confirm-voids"', 1)[1].split("</div>", 1)[0]
+    assert "table exercise vs friction-baseline: dt may not change (dt 0.01 → 0.02)." in voids
+    assert "Every item that compares this config's run will be voided" in voids
+    assert 'form="confirm-form" name="accept_voids" value="yes" required' in shown.text
+    refused = api.client.post("/sheet", headers=api.as_("alice"), data=confirm_fields(shown.text))  # not ticked
+    assert refused.status_code == 422 and 'id="err-accept_voids"' in refused.text
+    assert '<a href="#accept-voids">I submit knowing these items will be voided</a>' in refused.text
+    assert submissions_of("alice") == []
+    assert 'value="0.02"' in api.client.get("/sheet", headers=api.as_("alice")).text  # the draft is kept
+    done = api.client.post("/sheet", headers=api.as_("alice"), data={**confirm_fields(refused.text),
+                                                                       "accept_voids": "yes"}, follow_redirects=False)
+    assert done.status_code == 303, done.text
+    (stored,) = submissions_of("alice")
+    assert stored.sheet["configs"]["table_exercise"]["dt"] == 0.02
+
+
+def test_a_confirmation_without_a_violation_asks_no_second_tick(api):
+    aid = create(api, part="exercises").json()["id"]
+    from tests.factories import REFERENCE_YAML
+    from tests.grader.pages.test_sheet_form import import_yaml
+
+    page = import_yaml(api, REFERENCE_YAML.read_text(), path=f"/assignments/{aid}/sheet")
+    shown = press(api, aid, {**form_fields(page.text), "action": "submit"})
+    assert shown.status_code == 200 and 'id="confirm-voids"' not in shown.text and "accept_voids" not in shown.text
