@@ -192,7 +192,7 @@ def test_the_same_in_chinese_at_phone_width_and_a_refusal_in_the_readers_words(b
         top = student.inner_text("#check-summary")
         assert "Week 3 checkpoints" in top and " IST" in top and not ISO_TIME.search(main), top
         assert "assignment_id" not in main and f"assignment {week['id']}" not in main
-        assert main.count("Week 3 checkpoints 于" if name == "zh" else "Week 3 checkpoints opens at") == 1, main
+        assert main.count("“Week 3 checkpoints”于" if name == "zh" else "“Week 3 checkpoints” opens at") == 1, main
         assert_accessible(student, f"a refused Submit ({name})")
         shoot(student, f"{name}_refused")
         student.context.close()

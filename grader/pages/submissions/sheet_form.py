@@ -9,7 +9,6 @@ import hashlib
 import json
 import re
 from dataclasses import dataclass
-from datetime import datetime
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, File, Request, UploadFile, status
@@ -90,8 +89,8 @@ def _standing(session, user: User, assignment: Assignment | None) -> dict | None
         return None
     try:
         attempt, late = assignments.admit(session=session, assignment=assignment, student=user, now=utcnow())
-    except Refused as exc:
-        return {"refused": exc.rule}
+    except Refused as exc:  # the page words it from exc.reason and exc.facts (templates/_refusal.html)
+        return {"refused": exc}
     return {"attempt": attempt, "late": assignments.late_text(late),
             "penalty": assignments.penalty_fraction(assignment, late)}
 
@@ -202,37 +201,6 @@ def _held_changed(fields: list[ConfigField], values: dict) -> bool:
 
 # --- refusals in the reader's words -----------------------------------------------------------------------------------
 
-_AT = r"(?P<{}>[0-9T:+\-.]+)(?: \([^)]*\))?"
-# grader.services.setup.assignments.admit's refusals, read back into what the page words itself: the assignment by
-# its title, times in the course's zone as the reader's locale writes them, counts with their plural forms.
-_ADMIT_REFUSALS = [
-    ("opens", re.compile(rf"^assignment [0-9]+ opens at {_AT.format('at')}; it is {_AT.format('now')}$")),
-    ("closed", re.compile(rf"^assignment [0-9]+ closed at {_AT.format('at')} \(its hard close\); "
-                          rf"it is {_AT.format('now')}$")),
-    ("closed_extension", re.compile(rf"^assignment [0-9]+ closed at {_AT.format('at')} \(your extension's hard "
-                                    rf"close\); it is {_AT.format('now')}$")),
-    ("attempts", re.compile(r"^assignment [0-9]+ allows (?P<n>[0-9]+) attempts; (?P<used>[0-9]+) already submitted$")),
-    ("per_hour", re.compile(rf"^assignment [0-9]+ allows (?P<n>[0-9]+) submissions per hour; (?P<k>[0-9]+) in the "
-                            rf"last hour, the next is allowed at {_AT.format('at')}$")),
-]
-
-
-def _read_rule(rule: str) -> dict | None:
-    """An assignment's refusal as its parts ({kind, at, now, n, used, k}: times aware, counts int), or None for a
-    rule the page shows as it is."""
-    for kind, pattern in _ADMIT_REFUSALS:
-        found = pattern.match(rule or "")
-        if found:
-            parts: dict[str, Any] = {"kind": kind}
-            for key, value in found.groupdict().items():
-                try:
-                    parts[key] = datetime.fromisoformat(value) if key in ("at", "now") else int(value)
-                except ValueError:
-                    return None
-            return parts
-    return None
-
-
 # Fields a refusal names that the page words by its rule alone: the assignment (its title is in the rule) and the
 # per-person quotas (the rule says which).
 UNLABELLED = ("assignment_id", "submissions", "draft", "draft saves")
@@ -292,8 +260,10 @@ def _summary(request: Request, items, configs: dict[str, list[ConfigField]], err
             continue
         seen.add((error["field"], error["rule"]))
         words, anchor, rest = _field_label(error["field"], items, configs, say, lesson_word)
-        rows.append({"label": words, "href": anchor, "code": rest, "rule": error["rule"],
-                     "read": _read_rule(error["rule"])})
+        # the assignment's own refusal is worded from its reason and facts (templates/_refusal.html), the rest as written
+        own = refusal if (refusal is not None and refusal.reason and error["field"] == getattr(refusal, "field", None)
+                          and error["rule"] == getattr(refusal, "rule", None)) else None
+        rows.append({"label": words, "href": anchor, "code": rest, "rule": error["rule"], "refusal": own})
     broken = [c for c in checks if c.violations]
     return {"errors": rows, "checks": checks, "broken": broken,
             "detail": refusal.detail if refusal is not None and not rows else None,
@@ -341,7 +311,7 @@ def _render(request: Request, session, user: User, assignment: Assignment | None
         "changed_roles": changed_roles, "submitting": submitting,
         "checked": checked, "checks": checks, "notice": notice, "refusal": refusal, "summary": summary,
         # the rule that refuses a submission now, said once: in the summary when a Submit was refused by it
-        "standing": standing, "standing_read": _read_rule(standing.get("refused")) if standing else None,
+        "standing": standing,
         "standing_shown": not (refusal is not None and standing and standing.get("refused")
                                and any(e.get("field") == "assignment_id" for e in refusal.errors)),
         "has_last": drafts.last_submitted(session=session, user=user, assignment=assignment) is not None,
@@ -404,7 +374,7 @@ def _confirmation(request: Request, session, user: User, assignment: Assignment 
     checks = _config_verdicts(session, assignment, user, sheet)
     return TEMPLATES.TemplateResponse(request, "submissions/submit_confirm.html", {
         "user": user, "a": assignment, "part": part, "lesson": lesson, "path": _path(assignment),
-        "standing": standing, "standing_read": _read_rule(standing.get("refused")) if standing else None,
+        "standing": standing,
         "digest": sheet_digest(sheet), "notice": notice,
         "questions": len(assignments.item_ids(lesson, part)), "broken": [c for c in checks if c.violations],
         "missing_consent": missing_consent,

@@ -207,7 +207,7 @@ def test_a_refused_submission_names_the_rule_and_keeps_the_draft(api):
     refused = api.client.post(f"/assignments/{aid}/sheet", headers=api.as_("alice"),
                               data={**fields, "action": "submit"})
     assert refused.status_code == 409, refused.text
-    assert 'id="check-summary"' in refused.text and refused.text.count("Checkpoints opens at ") == 1
+    assert 'id="check-summary"' in refused.text and refused.text.count("“Checkpoints” opens at ") == 1
     kept = api.client.get(f"/assignments/{aid}/sheet", headers=api.as_("alice"))
     assert 'name="answers.C6.pair_rule" value="max" checked' in kept.text
 

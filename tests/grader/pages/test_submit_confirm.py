@@ -135,12 +135,12 @@ def _refusal(api, aid: int, fields: dict, rule: str, code: int) -> None:
 
 def test_not_open_yet_is_refused_with_the_opening_time(api):
     aid = create(api, open_at=at(1), due_at=at(2), hard_close_at=at(3)).json()["id"]
-    _refusal(api, aid, checkpoint_form(api, aid), "Checkpoints opens at ", 409)
+    _refusal(api, aid, checkpoint_form(api, aid), "“Checkpoints” opens at ", 409)
 
 
 def test_after_the_hard_close_is_refused_with_the_close(api):
     aid = create(api, open_at=at(-3), due_at=at(-2), hard_close_at=at(-1)).json()["id"]
-    _refusal(api, aid, checkpoint_form(api, aid), "Checkpoints closed at ", 409)
+    _refusal(api, aid, checkpoint_form(api, aid), "“Checkpoints” closed at ", 409)
 
 
 def test_the_attempt_limit_is_refused_naming_it(api):
@@ -148,7 +148,7 @@ def test_the_attempt_limit_is_refused_naming_it(api):
     fields = checkpoint_form(api, aid)
     shown = press(api, aid, {**fields, "action": "submit"})
     assert press(api, aid, confirm_fields(shown.text), follow_redirects=False).status_code == 303
-    _refusal(api, aid, fields, "Checkpoints allows 1 attempt and you have submitted 1.", 409)
+    _refusal(api, aid, fields, "“Checkpoints” allows 1 attempt, and you have used 1.", 409)
 
 
 def test_the_hourly_limit_is_refused_with_the_next_allowed_time(api):
@@ -156,7 +156,7 @@ def test_the_hourly_limit_is_refused_with_the_next_allowed_time(api):
     fields = checkpoint_form(api, aid)
     shown = press(api, aid, {**fields, "action": "submit"})
     assert press(api, aid, confirm_fields(shown.text), follow_redirects=False).status_code == 303
-    _refusal(api, aid, fields, "Checkpoints allows 1 submission per hour; 1 in the last hour. The next is allowed at ",
+    _refusal(api, aid, fields, "“Checkpoints” takes 1 submission per hour from each student; the next is allowed at ",
              429)
 
 
@@ -172,7 +172,7 @@ def test_a_confirmation_outlived_by_the_hard_close_is_refused_at_submit_and_keep
         session.get(Assignment, aid).hard_close_at = utcnow() - timedelta(minutes=1)
         session.commit()
     refused = press(api, aid, confirm_fields(shown.text))
-    assert refused.status_code == 409 and refused.text.count("Checkpoints closed at ") == 1
+    assert refused.status_code == 409 and refused.text.count("“Checkpoints” closed at ") == 1
     assert 'id="check-summary"' in refused.text and submissions_of("alice") == []
     assert form_fields(api.client.get(f"/assignments/{aid}/sheet", headers=api.as_("alice")).text) == fields
 
