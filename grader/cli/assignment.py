@@ -170,6 +170,9 @@ def generate_variants(assignment_id: int, seed: int, k: int, url: str, token: st
 def list_variants(assignment_id: int, as_json: bool, url: str, token: str) -> None:
     """The pool of ASSIGNMENT_ID: each variant's state (measuring, kept, dropped), reason and students (staff)."""
     pool = _call(_client(url, token).variants, assignment_id)
+    if pool is None:
+        click.echo(f"assignment #{assignment_id} has no variant pool: its students work on the lesson's shipped cases")
+        return
     if as_json:
         click.echo(json.dumps(pool, indent=2))
     else:

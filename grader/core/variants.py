@@ -14,7 +14,6 @@ from sqlalchemy.orm import Session
 
 import rubric
 from rubric.copying import copy_evidence
-from rubric.scoring import LESSON_RUNS
 
 from grader.core.lifecycle import stored_result
 from grader.core.models import CopyFlag, Event, Grade, PoolVariant, Submission, utcnow
@@ -38,6 +37,12 @@ def submission_variant(submission: Submission) -> rubric.Variant | None:
 def measured_variant(session: Session, submission: Submission) -> PoolVariant | None:
     """The pool variant whose lesson runs this submission measures, or None for any other submission."""
     return session.scalar(select(PoolVariant).where(PoolVariant.submission_id == submission.id))
+
+
+def measuring_submissions():
+    """SQL: the ids of the submissions that measure a pool's variants (an instructor's, graded only to check the
+    variant): not a student's work, left out of the grade exports."""
+    return select(PoolVariant.submission_id).where(PoolVariant.submission_id.is_not(None))
 
 
 def decide(session: Session, row: PoolVariant, *, kept: bool, reason: str | None, check: dict | None = None) -> None:
@@ -79,16 +84,21 @@ def record_failure(session: Session, submission: Submission, error: str) -> None
         decide(session, row, kept=False, reason=f"measurement failed: {error}")
 
 
-def other_variants_results(session: Session, row: PoolVariant) -> dict[str, tuple[rubric.Variant, dict]]:
-    """{name: (variant, its stored lesson runs by case name)} of every other kept variant of `row`'s pool."""
-    others = {}
-    for other in row.pool.variants:
-        if other.id == row.id or other.state != VariantState.KEPT or other.submission_id is None:
-            continue
-        measuring = session.get(Submission, other.submission_id)
-        runs = {run.name: stored_result(run) for run in measuring.case_runs if run.name in LESSON_RUNS}
-        others[other.name] = (as_variant(other), runs)
-    return others
+def _dumped(spec) -> dict:
+    return spec.model_dump(mode="json", exclude_computed_fields=True)
+
+
+def runs_on(session: Session, other: PoolVariant, sheet, book, own: Submission) -> dict:
+    """The stored runs grading `sheet` on variant `other` needs, without running anything: each case the sheet asks
+    for under `other` (rubric.cases_to_run) taken from `other`'s measuring submission, else from the student's own runs,
+    wherever one holds exactly that spec; a case neither holds is left out (graded not measured there)."""
+    needed = {spec.name: _dumped(spec) for spec in rubric.cases_to_run(sheet, book, as_variant(other))}
+    measuring = session.get(Submission, other.submission_id)
+    results = {}
+    for run in [*measuring.case_runs, *own.case_runs]:
+        if run.name not in results and needed.get(run.name) == run.spec:
+            results[run.name] = stored_result(run)
+    return results
 
 
 def flag_copying(session: Session, submission: Submission, grade: Grade, report, book) -> list[CopyFlag]:
@@ -99,9 +109,10 @@ def flag_copying(session: Session, submission: Submission, grade: Grade, report,
     if row is None or measured_variant(session, submission) is not None:
         return []
     sheet = rubric.parse_sheet(submission.sheet, submission.part)
-    own_runs = {run.name: stored_result(run) for run in submission.case_runs if run.name not in LESSON_RUNS}
-    others = {name: rubric.grade_sheet(sheet, {**runs, **own_runs}, book, variant)
-              for name, (variant, runs) in other_variants_results(session, row).items()}
+    others = {other.name: rubric.grade_sheet(sheet, runs_on(session, other, sheet, book, submission), book,
+                                             as_variant(other))
+              for other in row.pool.variants
+              if other.id != row.id and other.state == VariantState.KEPT and other.submission_id is not None}
     by_name = {v.name: v for v in row.pool.variants}
     flags = []
     found = copy_evidence(report, others)
@@ -128,5 +139,5 @@ def try_flag_copying(session: Session, submission: Submission, grade: Grade, rep
                           detail=f"copy evidence not computed ({type(exc).__name__}); see the service log"))
 
 
-__all__ = ["as_variant", "decide", "drop_reason", "flag_copying", "measured_variant", "other_variants_results",
+__all__ = ["as_variant", "decide", "drop_reason", "flag_copying", "measured_variant", "measuring_submissions", "runs_on",
            "record_check", "record_failure", "submission_variant", "try_flag_copying"]

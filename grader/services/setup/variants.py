@@ -233,15 +233,15 @@ def generate_and_measure(*, session: Session, assignment: Assignment, user: User
     return pool
 
 
-def pool_view(*, session: Session, assignment: Assignment, user: User) -> PoolView:
+def pool_view(*, session: Session, assignment: Assignment, user: User) -> PoolView | None:
     """The pool with every variant's parameters, state and reason: staff of the course only (a student never reads
-    another variant's parameters). NotFound when the assignment has no pool."""
+    another variant's parameters). None when the assignment has no pool (its students work on the shipped lab)."""
     if user.course_id != assignment.course_id:
         raise NotFound("assignment not found")
     access.require_staff(user, action="read a variant pool")
     pool = pool_of(session, assignment)
     if pool is None:
-        raise NotFound(f"assignment {assignment.id} has no variant pool")
+        return None
     students = Counter(session.scalars(select(StudentVariant.variant_id)
                                        .where(StudentVariant.assignment_id == assignment.id)).all())
     rows = [VariantRow(id=v.name, position=v.position, digest=v.digest, state=v.state, reason=v.reason,

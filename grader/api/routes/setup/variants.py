@@ -26,9 +26,10 @@ def generate_pool(assignment: InstructorsAssignment, body: VariantPoolCreate, se
     return logic.pool_view(session=session, assignment=pool.assignment, user=user)
 
 
-@router.get("/assignments/{assignment_id}/variants", response_model=PoolView, responses=errors(403))
+@router.get("/assignments/{assignment_id}/variants", response_model=PoolView | None, responses=errors(403))
 def list_pool(assignment: ReadableAssignment, session: SessionDep, user: StaffUser):
-    """The assignment's pool: every variant's parameters, state (measuring, kept, dropped) and reason (staff)."""
+    """The assignment's pool: every variant's parameters, state (measuring, kept, dropped) and reason (staff); null
+    when it has none (its students all work on the lesson's shipped cases)."""
     return logic.pool_view(session=session, assignment=assignment, user=user)
 
 

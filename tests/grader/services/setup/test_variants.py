@@ -66,6 +66,7 @@ def test_a_pool_is_refused_once_the_assignment_opened_a_second_time_or_past_k(ap
     response = generate(api, opened)
     assert response.status_code == 409 and response.json()["errors"][0]["field"] == "assignment", response.text
     assert "before the assignment opens" in response.json()["errors"][0]["rule"]
+    assert api.client.get(f"/v1/assignments/{opened}/variants", headers=api.as_("prof")).json() is None
     later = pool_assignment(api)
     response = generate(api, later, k=65)
     assert response.status_code == 422 and "k" in response.text
