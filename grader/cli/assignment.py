@@ -161,6 +161,15 @@ def generate_variants(assignment_id: int, seed: int, k: int, url: str, token: st
     _echo_pool(pool)
 
 
+@variants.command("top-up")
+@click.argument("assignment_id", type=int)
+@URL
+@TOKEN
+def top_up_variants(assignment_id: int, url: str, token: str) -> None:
+    """Draw ASSIGNMENT_ID's pool further from its seed until K variants may be kept, and measure the new ones."""
+    _echo_pool(_call(_client(url, token).top_up_variants, assignment_id))
+
+
 @variants.command("list")
 @click.argument("assignment_id", type=int)
 @click.option("--json", "as_json", is_flag=True, help="Print the pool as JSON (a variant's entry is what "

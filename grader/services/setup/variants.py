@@ -233,6 +233,46 @@ def generate_and_measure(*, session: Session, assignment: Assignment, user: User
     return pool
 
 
+def top_up(*, session: Session, assignment: Assignment, user: User, sender: Sender) -> list[PoolVariant]:
+    """Draw the pool further until it may keep K variants: the next draws of the same seed (draws are sequential, so
+    the pool stays reproducible), one per variant dropped, measured like the first. Instructors of the course only,
+    once the pool is ready with fewer than K kept, before the assignment opens and while no student has a variant.
+    Returns the variants added."""
+    access.require_course_instructor(user, assignment.course_id, action="draw a variant pool further",
+                                     thing="assignment")
+    pool = pool_of(session, assignment)
+    if pool is None:
+        raise NotFound(f"assignment {assignment.id} has no variant pool")
+    kept = sum(v.state == VariantState.KEPT for v in pool.variants)
+    rule = None
+    if pool.state != PoolState.READY:
+        rule = "its variants are still being measured: top up once every one is kept or dropped"
+    elif kept >= pool.k:
+        rule = f"it keeps {kept} of the {pool.k} variants asked for already"
+    elif utcnow() >= assignment.open_at:
+        rule = "the assignment has opened: students already working on it would change lab"
+    elif session.scalar(select(func.count()).select_from(StudentVariant)
+                        .where(StudentVariant.assignment_id == assignment.id)):
+        rule = "students have variants of it already"
+    if rule is not None:
+        raise Conflict("the pool is not drawn further", [{"field": "assignment", "rule": rule}])
+    space = rubric.load_variant_space(pool.lesson, pool.space_version)
+    drawn_so_far = len(pool.variants)
+    try:
+        drawn = rubric.draw_pool(space, seed=pool.seed, k=drawn_so_far + pool.k - kept)
+    except rubric.VariantPoolError as exc:
+        raise Invalid("the variant space cannot yield more variants", [{"field": "k", "rule": str(exc)}]) from None
+    added = [PoolVariant(pool_id=pool.id, name=v.id, position=drawn_so_far + n, parameters=v.parameters,
+                         digest=v.digest, state=VariantState.DRAWN)
+             for n, v in enumerate(drawn.variants[drawn_so_far:], start=1)]
+    session.add_all(added)
+    pool.state, pool.ready_at = PoolState.MEASURING, None
+    session.commit()
+    session.refresh(pool)
+    measure(session=session, pool=pool, user=user, sender=sender)
+    return added
+
+
 def pool_view(*, session: Session, assignment: Assignment, user: User) -> PoolView | None:
     """The pool with every variant's parameters, state and reason: staff of the course only (a student never reads
     another variant's parameters). None when the assignment has no pool (its students work on the shipped lab)."""

@@ -26,6 +26,15 @@ def generate_pool(assignment: InstructorsAssignment, body: VariantPoolCreate, se
     return logic.pool_view(session=session, assignment=pool.assignment, user=user)
 
 
+@router.post("/assignments/{assignment_id}/variants/top-up", response_model=PoolView,
+             responses=errors(403, 409, _409="Still measuring, K kept already, opened, or students have variants"))
+def top_up_pool(assignment: InstructorsAssignment, session: SessionDep, user: CurrentUser):
+    """Draw the pool further from its seed, one variant per dropped one, and measure them (an instructor of the
+    course, before the assignment opens); the pool is drawn reproducibly as the seed's next draws."""
+    logic.top_up(session=session, assignment=assignment, user=user, sender=dispatch)
+    return logic.pool_view(session=session, assignment=assignment, user=user)
+
+
 @router.get("/assignments/{assignment_id}/variants", response_model=PoolView | None, responses=errors(403))
 def list_pool(assignment: ReadableAssignment, session: SessionDep, user: StaffUser):
     """The assignment's pool: every variant's parameters, state (measuring, kept, dropped) and reason (staff); null

@@ -219,3 +219,33 @@ def test_grader_grade_reads_a_variant_by_pool_id_or_by_its_parameters():
     assert partial.parameters["table_friction"] == 0.45 and partial.parameters["fine_dt"] == 0.01
     with pytest.raises(click.BadParameter, match="drop_height"):
         load_variant('{"parameters": {"drop_height": 1}}', "L03", None)
+
+
+def test_a_pool_with_variants_dropped_is_drawn_further_from_its_seed_until_k_may_be_kept(api):
+    from grader.core.db import new_session
+    from grader.core.models import Assignment, PoolVariant, User
+    from grader.services.errors import Conflict
+    from grader.services.setup import variants
+
+    assignment_id, pool_id = _services_pool(api, k=2)
+    with new_session() as session:
+        prof = session.scalar(select(User).where(User.name == "prof"))
+        with pytest.raises(Conflict, match="not drawn further"):  # still measuring (drawn, never decided)
+            variants.top_up(session=session, assignment=session.get(Assignment, assignment_id), user=prof,
+                            sender=Recorded())
+    _all_kept_but(pool_id, "v7-1")
+    assert api.client.post(f"/v1/assignments/{assignment_id}/variants/top-up",
+                           headers=api.as_("tess")).status_code == 403
+    response = api.client.post(f"/v1/assignments/{assignment_id}/variants/top-up", headers=api.as_("prof"))
+    assert response.status_code == 200, response.text
+    pool = response.json()
+    third = rubric.draw_pool(rubric.load_variant_space("L03"), seed=7, k=3).variants[2]
+    assert [(v["id"], v["state"]) for v in pool["variants"]] == [
+        ("v7-1", "dropped"), ("v7-2", "kept"), ("v7-3", "measuring")]
+    assert pool["variants"][2]["parameters"] == third.parameters and pool["state"] == "measuring"
+    assert len(api.sent) == 9  # the new variant's runs only
+    with new_session() as session:
+        new = session.scalar(select(PoolVariant).where(PoolVariant.name == "v7-3"))
+        assert new.submission_id is not None and new.position == 3
+    again = api.client.post(f"/v1/assignments/{assignment_id}/variants/top-up", headers=api.as_("prof"))
+    assert again.status_code == 409 and "still being measured" in again.text
