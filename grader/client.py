@@ -74,6 +74,18 @@ class Client:
     def assignment(self, assignment_id: int) -> dict:
         return self._ok(self.http.get(f"/assignments/{assignment_id}"))
 
+    def generate_variants(self, assignment_id: int, body: dict) -> dict:
+        return self._ok(self.http.post(f"/assignments/{assignment_id}/variants", json=body))
+
+    def top_up_variants(self, assignment_id: int) -> dict:
+        return self._ok(self.http.post(f"/assignments/{assignment_id}/variants/top-up"))
+
+    def variants(self, assignment_id: int) -> dict:
+        return self._ok(self.http.get(f"/assignments/{assignment_id}/variants"))
+
+    def copy_flags(self, assignment_id: int) -> list:
+        return self._ok(self.http.get(f"/assignments/{assignment_id}/copy-flags"))
+
     def release(self, assignment_id: int) -> dict:
         return self._ok(self.http.post(f"/assignments/{assignment_id}/release"))
 

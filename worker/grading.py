@@ -30,6 +30,7 @@ from grader.core.grades import current_grade
 from grader.core.models import Event, Grade, Submission, utcnow
 from grader.core.settings import settings
 from grader.core.states import SubmissionState
+from grader.core.variants import record_check, record_failure, submission_variant
 
 
 def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
@@ -53,6 +54,7 @@ def grade_submission(*, session: Session, submission_id: int) -> Grade | None:
         submission = session.get(Submission, submission_id)
         submission.error = f"grading failed: {type(exc).__name__}: {exc}"
         touch(submission, SubmissionState.FAILED, submission.error, session=session)
+        record_failure(session, submission, submission.error)  # a pool variant it measures is dropped, saying why
         session.commit()
         return None
     try:
@@ -82,6 +84,7 @@ def complete_grade(*, session: Session, submission_id: int) -> Grade | None:
         session.rollback()
         return None
     session.add(Event(submission_id=submission.id, state="lab-check", detail=check_note))
+    record_check(session, submission, check, check_note)  # a pool variant it measures is kept or dropped on it
     session.commit()
     session.refresh(grade)
     return grade
@@ -95,4 +98,5 @@ def _check(submission: Submission, book) -> tuple:
     except Exception as exc:  # noqa: BLE001 - recorded in the event; the grade stands and is complete
         return None, f"lab check failed: runs unreadable: {type(exc).__name__}: {exc}"
     reused = {run.name: run.reused_from_id for run in submission.case_runs if run.reused_from_id}
-    return lab_check(results, rubric=book, reused=reused, artifacts_dir=settings.artifacts_dir)
+    return lab_check(results, rubric=book, reused=reused, artifacts_dir=settings.artifacts_dir,
+                     variant=submission_variant(submission))

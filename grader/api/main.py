@@ -8,7 +8,7 @@ from grader.api.routes.identity import tokens
 from grader.api.routes.lti import registrations
 from grader.api.routes.reports import audit, exports
 from grader.api.routes.rubrics import versions
-from grader.api.routes.setup import assignments, courses
+from grader.api.routes.setup import assignments, courses, variants
 from grader.api.routes.submissions import case_runs, files, review_requests, submit
 
 
@@ -29,6 +29,7 @@ api_router.include_router(submit.router)
 api_router.include_router(files.router)
 api_router.include_router(courses.router)
 api_router.include_router(assignments.router)
+api_router.include_router(variants.router)
 api_router.include_router(exports.router)
 api_router.include_router(versions.router)
 api_router.include_router(audit.router)

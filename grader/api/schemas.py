@@ -98,3 +98,10 @@ class AuditEntryPublic(BaseModel):
     comparison: dict[str, Any] | None
     figures: list[str]
     requested_by_id: int | None
+
+
+class VariantPoolCreate(BaseModel):
+    """A variant pool to draw for an assignment before it opens (issue 34)."""
+
+    seed: int = Field(ge=0, le=2**31 - 1, description="The draw's seed: the same seed draws the same pool")
+    k: int = Field(default=16, ge=1, le=64, description="How many variants to draw and measure")

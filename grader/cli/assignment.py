@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from datetime import datetime
 from pathlib import Path
 
@@ -141,3 +142,70 @@ def grades(assignment_id: int, url: str, token: str, csv_out: Path | None) -> No
                    f"{r['attempt']:>8}  {t(r['submitted_at'])}")
     if not rows:
         click.echo("no graded submission yet")
+
+
+@assignment.group()
+def variants() -> None:
+    """An assignment's pool of per-student lab variants: generate (instructors, before it opens), list, copy flags."""
+
+
+@variants.command("generate")
+@click.argument("assignment_id", type=int)
+@click.option("--seed", type=int, required=True, help="The draw's seed: the same seed draws the same pool")
+@click.option("-k", "--k", "k", type=int, default=16, show_default=True, help="How many variants to draw")
+@URL
+@TOKEN
+def generate_variants(assignment_id: int, seed: int, k: int, url: str, token: str) -> None:
+    """Draw K variants for ASSIGNMENT_ID and queue their lesson runs; `list` shows which are kept as checks land."""
+    pool = _call(_client(url, token).generate_variants, assignment_id, {"seed": seed, "k": k})
+    _echo_pool(pool)
+
+
+@variants.command("top-up")
+@click.argument("assignment_id", type=int)
+@URL
+@TOKEN
+def top_up_variants(assignment_id: int, url: str, token: str) -> None:
+    """Draw ASSIGNMENT_ID's pool further from its seed until K variants may be kept, and measure the new ones."""
+    _echo_pool(_call(_client(url, token).top_up_variants, assignment_id))
+
+
+@variants.command("list")
+@click.argument("assignment_id", type=int)
+@click.option("--json", "as_json", is_flag=True, help="Print the pool as JSON (a variant's entry is what "
+                                                       "`grader grade --variant` takes)")
+@URL
+@TOKEN
+def list_variants(assignment_id: int, as_json: bool, url: str, token: str) -> None:
+    """The pool of ASSIGNMENT_ID: each variant's state (measuring, kept, dropped), reason and students (staff)."""
+    pool = _call(_client(url, token).variants, assignment_id)
+    if pool is None:
+        click.echo(f"assignment #{assignment_id} has no variant pool: its students work on the lesson's shipped cases")
+        return
+    if as_json:
+        click.echo(json.dumps(pool, indent=2))
+    else:
+        _echo_pool(pool)
+
+
+@variants.command("flags")
+@click.argument("assignment_id", type=int)
+@URL
+@TOKEN
+def copy_flags(assignment_id: int, url: str, token: str) -> None:
+    """Submissions of ASSIGNMENT_ID whose answers fit another variant rather than their own (staff)."""
+    rows = _call(_client(url, token).copy_flags, assignment_id)
+    for r in rows:
+        click.echo(f"submission #{r['submission_id']} {r['student']} (variant {r['own_variant']}): "
+                   f"fits {r['fits_variant']} on {', '.join(r['items'])}")
+    if not rows:
+        click.echo("no copy evidence")
+
+
+def _echo_pool(pool: dict) -> None:
+    click.echo(f"assignment #{pool['assignment_id']}: pool of {pool['k']} (seed {pool['seed']}, {pool['lesson']} "
+               f"variant space v{pool['space_version']}, rubric v{pool['rubric_version']}): {pool['state']}, "
+               f"{pool['kept']} kept, {pool['dropped']} dropped")
+    for v in pool["variants"]:
+        click.echo(f"  {v['id']:<10} {v['state']:<9} {v['students']:>3} students"
+                   + (f"  {v['reason']}" if v["reason"] else ""))

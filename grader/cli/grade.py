@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import sys
 import time
 from pathlib import Path
@@ -13,8 +14,10 @@ from grader.core.states import ExecutionMode, values
 import yaml
 from pydantic import ValidationError
 
-from rubric import cases_to_run, describe_errors, grade_sheet, load_rubric, one_factor_findings, parse_sheet
+from rubric import (Variant, VariantPoolError, cases_to_run, describe_errors, draw_pool, grade_sheet,
+                    load_rubric, load_variant_space, one_factor_findings, parse_sheet)
 from rubric.exports import grades_csv, gradescope_results
+from rubric.variants import complete_parameters
 from worker import run_cases
 
 CONFIG_SUFFIXES = (".yaml", ".yml", ".json")
@@ -50,6 +53,31 @@ def load_sheet_data(sheet_file: Path, configs_dir: Path | None) -> dict:
     return data
 
 
+UNNAMED_VARIANT = "v0-0"
+
+
+def load_variant(value: str | None, lesson: str, space_version: str | None) -> Variant | None:
+    """--variant: a pool variant id (v<seed>-<n>: the n-th variant drawn from the lesson's variant space with that
+    seed, as an assignment's pool draws it), or its parameters as JSON (inline or a .json/.yaml file): either
+    {"id": ..., "parameters": {...}} as `grader assignment variants list --json` prints one, or the bare parameters
+    (the ones left out keep the lesson's value; its id is then v0-0)."""
+    if value is None:
+        return None
+    try:
+        if re.fullmatch(r"v[0-9]+-[0-9]+", value):
+            seed, n = (int(part) for part in value[1:].split("-", 1))
+            return draw_pool(load_variant_space(lesson, space_version), seed=seed, k=n).variants[n - 1]
+        data = yaml.safe_load(value) if value.lstrip().startswith("{") else _read(Path(value))
+        if not isinstance(data, dict):
+            raise click.BadParameter("a variant id (v7-3) or a JSON object of parameters", param_hint="--variant")
+        if "parameters" in data:
+            return Variant(id=data.get("id", UNNAMED_VARIANT), lesson=lesson, parameters=data["parameters"])
+        return Variant(id=UNNAMED_VARIANT, lesson=lesson, parameters=complete_parameters(data))
+    except (ValueError, LookupError, yaml.YAMLError, VariantPoolError) as exc:
+        detail = "\n  ".join(describe_errors(exc)) if isinstance(exc, ValidationError) else str(exc)
+        raise click.BadParameter(detail, param_hint="--variant") from None
+
+
 def _echo_report(report) -> None:
     for item in report.items:
         click.echo(f"{item.id:3s} {item.verdict:21s} {item.score:g}/{item.max_score:g}  {item.question}")
@@ -67,8 +95,13 @@ def _echo_report(report) -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print the full grade report as JSON on stdout.")
 @click.option("--rubric-version", default=None, help="Rubric version to grade under (default: the latest).")
 @click.option("--mode", type=click.Choice(values(ExecutionMode)), default="warm", show_default=True)
+@click.option("--variant", "variant_value", default=None, metavar="ID|JSON",
+              help="Grade under a lab variant: a pool variant id (v7-3, drawn from the variant space by its seed) or "
+                   "its parameters as JSON, inline or a file (default: the lesson's shipped cases).")
+@click.option("--variant-space", "space_version", default=None,
+              help="The variant space version a variant id is drawn from (default: the latest).")
 def grade(sheet_file: Path, configs_dir: Path | None, out_dir: Path, as_json: bool, rubric_version: str | None,
-          mode: str) -> None:
+          mode: str, variant_value: str | None, space_version: str | None) -> None:
     """Grade a prediction SHEET against cases measured on this machine; prints each item and the total."""
     started = time.perf_counter()
     data = load_sheet_data(sheet_file, configs_dir)
@@ -80,17 +113,20 @@ def grade(sheet_file: Path, configs_dir: Path | None, out_dir: Path, as_json: bo
         rubric = load_rubric(sheet.lesson, rubric_version)
     except LookupError as exc:
         raise click.ClickException(str(exc)) from None
+    variant = load_variant(variant_value, sheet.lesson, space_version)
 
     # Human progress goes to stderr so that --json leaves stdout machine-readable.
     log = lambda message: click.echo(message, err=True)  # noqa: E731
-    for finding in one_factor_findings(sheet, rubric).values():
+    if variant is not None:
+        log(f"variant {variant.id}: " + ", ".join(f"{k}={v:g}" for k, v in sorted(variant.parameters.items())))
+    for finding in one_factor_findings(sheet, rubric, variant).values():
         log(("config " if finding.ok else "config NOT RUN: ") + finding.describe())
-    specs = cases_to_run(sheet, rubric)
+    specs = cases_to_run(sheet, rubric, variant)
     log(f"running {len(specs)} cases ({mode}): {', '.join(s.name for s in specs)}")
     results = run_cases_locally(specs, out_dir / "cases", mode,
                                 lambda r: log(f"  {r.spec.name}: {r.status} on {r.backend} in {r.wall_s:.1f} s"
                                               + (f" ({r.error})" if r.error else "")))
-    report = grade_sheet(sheet, results, rubric)
+    report = grade_sheet(sheet, results, rubric, variant)
 
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "report.json").write_text(report.model_dump_json(indent=2))

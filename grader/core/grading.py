@@ -19,13 +19,15 @@ from grader.core.overrides import current_overrides, overridden_report
 from grader.core.grades import current_grade
 from grader.core.states import SubmissionState
 from grader.core.models import Grade, Regrade, Submission, utcnow
+from grader.core.variants import submission_variant, try_flag_copying
 
 
 def score(submission: Submission, book) -> rubric.GradeReport:
-    """The submission's sheet scored under rubric version `book` on its stored measurements (raises on a bug)."""
+    """The submission's sheet scored under rubric version `book` on its stored measurements (raises on a bug), under
+    its variant where it has one (grader.core.variants: an assignment's pool; a regrade keeps it too)."""
     sheet = rubric.parse_sheet(submission.sheet, submission.part)
     results = {run.name: stored_result(run) for run in submission.case_runs}
-    return rubric.grade_sheet(sheet, results, book)
+    return rubric.grade_sheet(sheet, results, book, submission_variant(submission))
 
 
 def store_grade(*, session: Session, submission: Submission, book, report: rubric.GradeReport, execution_s: float,
@@ -62,8 +64,13 @@ def store_grade(*, session: Session, submission: Submission, book, report: rubri
 
 def grade_and_store(*, session: Session, submission: Submission, book, complete: bool,
                     detail: str | None = None) -> Grade:
-    """Score the submission under `book` and store the grade (no commit); see `score` and `store_grade`."""
+    """Score the submission under `book` and store the grade (no commit); see `score` and `store_grade`. A variant
+    sheet's copy evidence is stored beside it (grader.core.variants.try_flag_copying), never changing it."""
     started = time.perf_counter()
     report = score(submission, book)
-    return store_grade(session=session, submission=submission, book=book, report=report,
-                       execution_s=time.perf_counter() - started, complete=complete, detail=detail)
+    grade = store_grade(session=session, submission=submission, book=book, report=report,
+                        execution_s=time.perf_counter() - started, complete=complete, detail=detail)
+    if submission.variant_id is not None:
+        session.flush()  # the grade's id, which the evidence names
+        try_flag_copying(session, submission, grade, report, book)
+    return grade

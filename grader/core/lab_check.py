@@ -21,7 +21,7 @@ import subprocess
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-from rubric import CHECK_CASES, CaseResult, Rubric
+from rubric import CHECK_CASES, CaseResult, Rubric, Variant
 from rubric.check import CheckOutcome, OutputLocation, evaluate
 
 # Shared by the worker (worker/grading.py, when it completes a grade) and the regrade
@@ -30,15 +30,16 @@ from rubric.check import CheckOutcome, OutputLocation, evaluate
 
 
 def submission_check(results: Mapping[str, CaseResult], *, artifacts_dir: Path, rubric: Rubric,
-                     reused: Mapping[str, int] | None = None) -> CheckOutcome:
+                     reused: Mapping[str, int] | None = None, variant: Variant | None = None) -> CheckOutcome:
     """The L03 check over the submission's runs of the check's cases (N1-N4, friction-baseline, friction-table-0.30).
 
     The student's own configs (sheet.*) and the colour-swapped control are not lab-check cases; a check case the
     submission lacks is reported as not run. `reused` maps a case name to the case run whose measurement it reused.
+    `variant`: the submission's pool variant (its timing table and duration); None: the lesson's shipped cases.
     """
     lab = {name: results[name] for name in CHECK_CASES if name in results}
     outputs = output_location(lab.values(), artifacts_dir=Path(artifacts_dir))
-    report = evaluate(lab, outputs=outputs, rubric=rubric)
+    report = evaluate(lab, outputs=outputs, rubric=rubric, variant=variant)
     return report.outcome(notes=_service_notes(lab, reused or {}))
 
 
@@ -108,12 +109,12 @@ def _version_control(folder: Path) -> tuple[bool, str]:
 
 
 def lab_check(results: Mapping[str, CaseResult], *, rubric: Rubric, reused: Mapping[str, int],
-              artifacts_dir: Path) -> tuple[CheckOutcome | None, str]:
+              artifacts_dir: Path, variant: Variant | None = None) -> tuple[CheckOutcome | None, str]:
     """(the lab check of the submission's runs, or None, and a note for its event). A bug in evaluating the check
     never blocks or changes a grade: the grade then stores no check and the note says why. The note leaves the verdict
     to the report: a student sees the check only once no item of the grade is withheld (grader.services.submissions.visibility)."""
     try:
-        check = submission_check(results, artifacts_dir=artifacts_dir, rubric=rubric, reused=reused)
+        check = submission_check(results, artifacts_dir=artifacts_dir, rubric=rubric, reused=reused, variant=variant)
     except Exception as exc:  # noqa: BLE001 - the evidence of a check bug is the event, the grade stands
         return None, f"lab check failed: {type(exc).__name__}: {exc}"
     return check, f"lab check stored ({len(check.conditions)} conditions): its verdict is on the report"

@@ -1,5 +1,5 @@
 """Database tables (SQLAlchemy 2): courses, users and tokens, assignments and extensions, submissions, case runs,
-measurements, rubric versions, grades with their history, regrades, events.
+measurements, rubric versions, grades with their history, regrades, events, variant pools.
 
 All timestamps are naive UTC. Every state change of a submission or case run also appends an Event row.
 """
@@ -180,9 +180,13 @@ class Submission(Base):
     assignment_id: Mapped[int | None] = mapped_column(ForeignKey("assignments.id"), index=True)
     attempt: Mapped[int | None] = mapped_column(Integer)
     late_seconds: Mapped[int | None] = mapped_column(Integer)
+    # The pool variant it is graded under (issue 34): the student's own at an assignment with a pool, or the variant a
+    # pool's measuring submission measures. None: the lesson's shipped cases, as for every submission before pools.
+    variant_id: Mapped[int | None] = mapped_column(ForeignKey("pool_variants.id"), index=True)
 
     student: Mapped[User] = relationship(lazy="joined")
     assignment: Mapped[Assignment | None] = relationship()
+    variant: Mapped[PoolVariant | None] = relationship()
     @property
     def part(self) -> str:
         """Which answers its sheet holds: its assignment's part, or the whole sheet."""
@@ -656,3 +660,86 @@ class LtiOutbox(Base):
     waiting: Mapped[str | None] = mapped_column(Text)  # why some student's score is held back (withheld items)
 
     assignment: Mapped[Assignment] = relationship()
+
+
+class VariantPool(Base):
+    """An assignment's pool of lab variants (issue 34), drawn from a seed out of a reviewed variant space
+    (rubric.variants.draw_pool). Each variant's lesson runs are measured and its lab check evaluated before students
+    get one; `ready_at` is set once no variant is still measuring. `rejected` keeps the draws refused by the draw."""
+
+    __tablename__ = "variant_pools"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    assignment_id: Mapped[int] = mapped_column(ForeignKey("assignments.id"), unique=True)
+    lesson: Mapped[str] = mapped_column(String(16))
+    space_version: Mapped[str] = mapped_column(String(32))
+    space_hash: Mapped[str] = mapped_column(String(64))
+    rubric_version: Mapped[str] = mapped_column(String(32))  # the course's version the variants are checked under
+    seed: Mapped[int] = mapped_column(Integer)
+    k: Mapped[int] = mapped_column(Integer)
+    state: Mapped[str] = mapped_column(String(16))  # grader.core.states.PoolState
+    rejected: Mapped[list[Any]] = mapped_column(JSON, default=list)
+    created_by_id: Mapped[int] = mapped_column(ForeignKey("users.id"))
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    ready_at: Mapped[datetime | None] = mapped_column(DateTime)
+
+    assignment: Mapped[Assignment] = relationship()
+    variants: Mapped[list[PoolVariant]] = relationship(order_by="PoolVariant.position", back_populates="pool")
+
+
+class PoolVariant(Base):
+    """One drawn variant of a pool: its id (`name`, "v2026-3"), every lesson parameter, and whether it is kept. Its
+    lesson runs are the case runs of one measuring submission (`submission_id`, a plain id: submissions point here,
+    so no creation-order cycle), reused by content key by every student who gets it."""
+
+    __tablename__ = "pool_variants"
+    __table_args__ = (UniqueConstraint("pool_id", "name"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    pool_id: Mapped[int] = mapped_column(ForeignKey("variant_pools.id"), index=True)
+    name: Mapped[str] = mapped_column(String(32))
+    position: Mapped[int] = mapped_column(Integer)
+    parameters: Mapped[dict[str, Any]]
+    digest: Mapped[str] = mapped_column(String(16))
+    state: Mapped[str] = mapped_column(String(16))  # grader.core.states.VariantState
+    reason: Mapped[str | None] = mapped_column(Text)  # why it was dropped, shown to staff
+    submission_id: Mapped[int | None] = mapped_column(Integer, index=True)
+    check: Mapped[dict[str, Any] | None] = mapped_column(JSON)  # the lab check of its measured runs
+    decided_at: Mapped[datetime | None] = mapped_column(DateTime)
+
+    pool: Mapped[VariantPool] = relationship(back_populates="variants")
+
+
+class StudentVariant(Base):
+    """The one variant of an assignment's pool a student works on, fixed at their first form view or submission."""
+
+    __tablename__ = "student_variants"
+    __table_args__ = (UniqueConstraint("assignment_id", "student_id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    assignment_id: Mapped[int] = mapped_column(ForeignKey("assignments.id"), index=True)
+    student_id: Mapped[int] = mapped_column(ForeignKey("users.id"), index=True)
+    variant_id: Mapped[int] = mapped_column(ForeignKey("pool_variants.id"), index=True)
+    assigned_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+    variant: Mapped[PoolVariant] = relationship(lazy="joined")
+
+
+class CopyFlag(Base):
+    """Evidence that a variant submission's answers fit another variant's expected answers rather than its own
+    (rubric.copying.copy_evidence), stored when it is graded; never changes a grade. Staff only."""
+
+    __tablename__ = "copy_flags"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), index=True)
+    grade_id: Mapped[int] = mapped_column(ForeignKey("grades.id"))
+    variant_id: Mapped[int] = mapped_column(ForeignKey("pool_variants.id"))  # the other variant the answers fit
+    items: Mapped[list[Any]]
+    own_expected: Mapped[dict[str, Any]]
+    other_expected: Mapped[dict[str, Any]]
+    summary: Mapped[str] = mapped_column(Text)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+    submission: Mapped[Submission] = relationship()
+    variant: Mapped[PoolVariant] = relationship(lazy="joined")

@@ -82,6 +82,23 @@ class AssignmentParts(StrEnum):
     SHEET = "sheet"
 
 
+class PoolState(StrEnum):
+    """An assignment's variant pool (issue 34): measuring (some variant's runs or check outstanding) -> ready."""
+
+    MEASURING = "measuring"
+    READY = "ready"
+
+
+class VariantState(StrEnum):
+    """One drawn variant of a pool: drawn -> measuring -> kept | dropped (its check failed or was inconclusive, or its
+    parameters break the space; the reason is stored and shown)."""
+
+    DRAWN = "drawn"
+    MEASURING = "measuring"
+    KEPT = "kept"
+    DROPPED = "dropped"
+
+
 def values(enum: type[StrEnum]) -> list[str]:
     """The enum's values in declaration order (click choices, messages)."""
     return [member.value for member in enum]

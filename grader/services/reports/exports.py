@@ -16,6 +16,7 @@ from sqlalchemy.orm import Session
 
 from grader.core.lifecycle import evidence_bytes, evidence_of
 from grader.core.grades import current_grade
+from grader.core.variants import measuring_submissions
 from grader.core.models import Assignment, CaseRun, Course, Grade, Submission
 from grader.services.setup import assignments
 from grader.services.errors import Conflict, NotFound
@@ -37,10 +38,13 @@ def _report(grade: Grade):
 
 def course_grades_csv(*, session: Session, course: Course, latest: bool = False) -> tuple[str, str]:
     """(file name, CSV) of the course's current grades with each row's submission id and time (UTC): every graded
-    submission in submission order, or with `latest` each student's latest graded attempt."""
+    submission in submission order, or with `latest` each student's latest graded attempt. A `variant` column names
+    each row's lab variant once any row has one (rubric.exports.grades_csv); a pool's measuring submissions are not
+    rows."""
 
     graded = session.execute(select(Submission, Grade).join(Grade, Grade.submission_id == Submission.id)
-                             .where(Submission.course_id == course.id, Grade.superseded_at.is_(None))
+                             .where(Submission.course_id == course.id, Grade.superseded_at.is_(None),
+                                    Submission.id.not_in(measuring_submissions()))  # a pool's own checks
                              .order_by(Submission.id)).all()
     if latest:
         graded = sorted({s.student_id: (s, g) for s, g in graded}.values(), key=lambda sg: sg[0].student.name)

@@ -27,6 +27,7 @@ import rubric
 from grader.core import grading
 from grader.core.lab_check import lab_check
 from grader.core.lifecycle import stored_result
+from grader.core.variants import submission_variant
 from grader.core.rubrics import course_version, course_versions, get_version, stored_version
 from grader.core.models import Course, Grade, Regrade, RubricVersion, Submission, User, utcnow
 from grader.core.schemas import UtcDateTime
@@ -164,14 +165,17 @@ def _regrade_one(submission: Submission, grade: Grade, old_rubric, new_rubric, o
     try:
         sheet = rubric.parse_sheet(submission.sheet, submission.part)
         measured = {run.name for run in submission.case_runs}
-        missing = sorted(spec.name for spec in rubric.cases_to_run(sheet, new_rubric) if spec.name not in measured)
+        variant = submission_variant(submission)  # a variant submission is regraded under its own variant
+        missing = sorted(spec.name for spec in rubric.cases_to_run(sheet, new_rubric, variant)
+                         if spec.name not in measured)
         if missing:
             return RegradeEntry(**entry, skipped=f"v{new_rubric.version} needs cases never measured for this "
                                                  f"submission: {', '.join(missing)}"), None
         new = grading.score(submission, new_rubric)
         results = {run.name: stored_result(run) for run in submission.case_runs}
         reused = {run.name: run.reused_from_id for run in submission.case_runs if run.reused_from_id}
-        check, _ = lab_check(results, rubric=new_rubric, reused=reused, artifacts_dir=settings.artifacts_dir)
+        check, _ = lab_check(results, rubric=new_rubric, reused=reused, artifacts_dir=settings.artifacts_dir,
+                             variant=variant)
         new = new.model_copy(update={"check": check})
     except Exception as exc:  # one submission that cannot be regraded must not hide the others
         return RegradeEntry(**entry, skipped=f"regrading failed: {type(exc).__name__}: {exc}"), None

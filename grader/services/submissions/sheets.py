@@ -76,10 +76,11 @@ def parse_sheet(data: dict[str, Any], part: str = "sheet"):
     return rubric.parse_sheet(data, part)
 
 
-def cases_to_run(sheet, book) -> list:
+def cases_to_run(sheet, book, variant=None) -> list:
     """The cases grading `sheet` under `book` (the course's rubric version, grader.core.rubrics.course_rubric) needs:
-    the same version decides which configs obey the one-factor rule and so run, and then grades them."""
-    return list(rubric.cases_to_run(sheet, book))
+    the same version decides which configs obey the one-factor rule and so run, and then grades them. `variant`: the
+    student's own lab (rubric.Variant) at an assignment with a pool; None: the lesson's shipped cases."""
+    return list(rubric.cases_to_run(sheet, book, variant))
 
 
 def checkpoints_only(sheet) -> bool:

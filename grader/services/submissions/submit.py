@@ -17,7 +17,8 @@ from grader.core.audit import spec_key
 from grader.core.rubrics import course_rubric
 from grader.core.states import Backend, CaseRunState
 from grader.core.models import Assignment, CaseRun, Course, Event, Submission, User, utcnow
-from grader.services.setup import assignments
+from grader.services.setup import assignments, student_variants
+from grader.core.variants import as_variant
 from grader.services.identity import quotas
 from grader.services.submissions import sheets
 from grader.services.errors import Conflict, Forbidden, Invalid, Refused, field_errors
@@ -91,10 +92,12 @@ def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id
                                                   "rule": f"no assignment {assignment_id} in your course"}])
         # the time and attempt rules come before the sheet: a closed assignment takes nothing
         attempt, late_seconds = assignments.admit(session=session, assignment=assignment, student=user, now=utcnow())
+    # The student's own lab at an assignment with a variant pool (fixed at their first visit); None: the shipped one.
+    variant = student_variants.variant_for(session=session, assignment=assignment, student=user) if assignment else None
     try:
         parsed = sheets.parse_sheet(sheet, assignment.part if assignment else "sheet")
         book = course_rubric(session, user.course_id, parsed.lesson)
-        specs = sheets.cases_to_run(parsed, book)
+        specs = sheets.cases_to_run(parsed, book, as_variant(variant) if variant is not None else None)
     except ValidationError as exc:
 
         raise Invalid("invalid sheet", field_errors(describe_errors(exc), prefix="sheet")) from None
@@ -109,6 +112,7 @@ def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id
                                    force_rerun=force_rerun)
     if assignment is not None:
         submission.assignment_id, submission.attempt, submission.late_seconds = assignment.id, attempt, late_seconds
+        submission.variant_id = variant.id if variant is not None else None
     try:
         session.flush()  # a concurrent submission that took this attempt number fails here, before any grading
     except IntegrityError:

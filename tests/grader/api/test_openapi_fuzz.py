@@ -138,6 +138,8 @@ VALID_GETS = [
     ("/v1/assignments/{assignment_id}", "alice", {}, {}),
     ("/v1/assignments/{assignment_id}/grades", "prof", {}, {}),
     ("/v1/assignments/{assignment_id}/grades.csv", "prof", {}, {}),
+    ("/v1/assignments/{assignment_id}/variants", "prof", {}, {}),
+    ("/v1/assignments/{assignment_id}/copy-flags", "tess", {}, {}),
     ("/v1/rubrics/{lesson}/versions", "prof", {"lesson": "L03"}, {}),
     ("/v1/audit/entries", "prof", {}, {"lesson": "L03"}),
     ("/v1/audit/entries.csv", "prof", {}, {}),

@@ -227,3 +227,52 @@ def test_the_reuse_key_covers_spec_backend_precision_versions_and_runner(monkeyp
     assert set(inputs["versions"]) == {"genesis-world", "quadrants", "torch"}
     assert reuse.content_key({**inputs, "versions": {**inputs["versions"], "torch": "9.9"}}) != base
     assert reuse.content_key({**inputs, "runner_version": "999"}) != base
+
+
+def test_migration_0024_adds_variant_pools_and_leaves_every_earlier_submission_on_the_shipped_cases(tmp_path):
+    """0024 adds the pool tables and a nullable submissions.variant_id: a submission stored before keeps NULL (graded
+    on the lesson's shipped cases as before); one variant per (assignment, student) is enforced by the database; down
+    to 0023 drops the tables and the column and keeps the submission, and up again."""
+    from alembic import command
+    from sqlalchemy import inspect, text
+    from sqlalchemy.exc import IntegrityError
+
+    url = f"sqlite:///{tmp_path / 'm.db'}"
+    engine, submission_id = migrated_with_a_submission(url, specs=[])
+    config = alembic_config(url)
+    command.downgrade(config, "0023")
+    with engine.connect() as conn:
+        tables = set(inspect(conn).get_table_names())
+        columns = {c["name"] for c in inspect(conn).get_columns("submissions")}
+    assert not tables & {"variant_pools", "pool_variants", "student_variants", "copy_flags"}
+    assert "variant_id" not in columns
+    command.upgrade(config, "head")
+    with engine.begin() as conn:
+        assert conn.execute(text("SELECT variant_id FROM submissions WHERE id = :i"),
+                            {"i": submission_id}).one() == (None,)
+        people = dict(conn.execute(text("SELECT name, id FROM users")).all())
+        course = conn.execute(text("SELECT course_id FROM users WHERE name = 'prof'")).scalar()
+        conn.execute(text(
+            "INSERT INTO assignments (course_id, title, lesson, part, open_at, due_at, hard_close_at, "
+            "late_penalty_per_day, counted_attempt, visibility, item_visibility, created_by_id, created_at) VALUES "
+            "(:c, 'a', 'L03', 'sheet', CURRENT_TIMESTAMP, CURRENT_TIMESTAMP, CURRENT_TIMESTAMP, 0, 'latest', "
+            "'immediate', '{}', :p, CURRENT_TIMESTAMP)"), {"c": course, "p": people["prof"]})
+        assignment = conn.execute(text("SELECT id FROM assignments")).scalar()
+        conn.execute(text(
+            "INSERT INTO variant_pools (assignment_id, lesson, space_version, space_hash, rubric_version, seed, k, "
+            "state, rejected, created_by_id, created_at) VALUES (:a, 'L03', '1', 'h', '2', 7, 1, 'measuring', '[]', "
+            ":p, CURRENT_TIMESTAMP)"), {"a": assignment, "p": people["prof"]})
+        pool = conn.execute(text("SELECT id FROM variant_pools")).scalar()
+        conn.execute(text("INSERT INTO pool_variants (pool_id, name, position, parameters, digest, state) VALUES "
+                          "(:p, 'v7-1', 1, '{}', 'd', 'kept')"), {"p": pool})
+        variant = conn.execute(text("SELECT id FROM pool_variants")).scalar()
+        conn.execute(text("INSERT INTO student_variants (assignment_id, student_id, variant_id, assigned_at) VALUES "
+                          "(:a, :s, :v, CURRENT_TIMESTAMP)"), {"a": assignment, "s": people["alice"], "v": variant})
+    with pytest.raises(IntegrityError), engine.begin() as conn:
+        conn.execute(text("INSERT INTO student_variants (assignment_id, student_id, variant_id, assigned_at) VALUES "
+                          "(:a, :s, :v, CURRENT_TIMESTAMP)"), {"a": assignment, "s": people["alice"], "v": variant})
+    command.downgrade(config, "0023")
+    with engine.connect() as conn:
+        assert conn.execute(text("SELECT count(*) FROM submissions")).scalar() == 1
+    command.upgrade(config, "head")
+    engine.dispose()

@@ -1,0 +1,49 @@
+"""An assignment's variant pool (issue 34): generate and measure (instructors), list with states and reasons, and
+the copy evidence stored at grading (staff)."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, status
+
+from grader import dispatch
+from grader.api.responses import errors
+from grader.api.routes.setup.assignments import InstructorsAssignment, ReadableAssignment
+from grader.api.schemas import VariantPoolCreate
+from grader.services.setup import variants as logic
+from grader.services.setup.variants import FlagRow, PoolView
+from grader.web.deps import CurrentUser, SessionDep, StaffUser
+
+router = APIRouter(tags=["assignments"], responses=errors(401, 404, 422))
+
+
+@router.post("/assignments/{assignment_id}/variants", status_code=status.HTTP_201_CREATED, response_model=PoolView,
+             responses=errors(403, 409, 413, _409="The assignment has opened, or has a pool already"))
+def generate_pool(assignment: InstructorsAssignment, body: VariantPoolCreate, session: SessionDep, user: CurrentUser):
+    """Draw K variants from the seed and queue every variant's lesson runs (an instructor of the course, before the
+    assignment opens); each variant is kept or dropped, with its reason, once its lab check has run."""
+    pool = logic.generate_and_measure(session=session, assignment=assignment, user=user, seed=body.seed, k=body.k,
+                                      sender=dispatch)
+    return logic.pool_view(session=session, assignment=pool.assignment, user=user)
+
+
+@router.post("/assignments/{assignment_id}/variants/top-up", response_model=PoolView,
+             responses=errors(403, 409, _409="Still measuring, K kept already, opened, or students have variants"))
+def top_up_pool(assignment: InstructorsAssignment, session: SessionDep, user: CurrentUser):
+    """Draw the pool further from its seed, one variant per dropped one, and measure them (an instructor of the
+    course, before the assignment opens); the pool is drawn reproducibly as the seed's next draws."""
+    logic.top_up(session=session, assignment=assignment, user=user, sender=dispatch)
+    return logic.pool_view(session=session, assignment=assignment, user=user)
+
+
+@router.get("/assignments/{assignment_id}/variants", response_model=PoolView | None, responses=errors(403))
+def list_pool(assignment: ReadableAssignment, session: SessionDep, user: StaffUser):
+    """The assignment's pool: every variant's parameters, state (measuring, kept, dropped) and reason (staff); null
+    when it has none (its students all work on the lesson's shipped cases)."""
+    return logic.pool_view(session=session, assignment=assignment, user=user)
+
+
+@router.get("/assignments/{assignment_id}/copy-flags", response_model=list[FlagRow], responses=errors(403))
+def list_copy_flags(assignment: ReadableAssignment, session: SessionDep, user: StaffUser):
+    """Submissions whose answers fit another variant's expected answers rather than their own, with the items and
+    that variant (staff; never changes a grade)."""
+    return logic.copy_flags(session=session, assignment=assignment, user=user)

@@ -1,0 +1,143 @@
+"""Variant pools in the neutral core (issue 34): the variant a submission is graded under, a pool variant's verdict
+once its measuring submission's lab check lands, and the copy evidence stored when a variant sheet is graded.
+
+The worker reaches these through grader.core.grading and worker.grading (it imports only the core); the set-up
+service (grader.services.setup.variants) draws, stores and measures pools and assigns variants.
+"""
+
+from __future__ import annotations
+
+import logging
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+import rubric
+from rubric.copying import copy_evidence
+
+from grader.core.lifecycle import stored_result
+from grader.core.models import CopyFlag, Event, Grade, PoolVariant, Submission, utcnow
+from grader.core.states import PoolState, VariantState
+
+log = logging.getLogger(__name__)
+
+
+def as_variant(row: PoolVariant) -> rubric.Variant:
+    """The rubric's Variant of a stored pool variant (its parameters as drawn, its id the pool's name for it)."""
+    pool = row.pool
+    return rubric.Variant(id=row.name, lesson=pool.lesson, space_version=pool.space_version,
+                          space_hash=pool.space_hash, parameters=row.parameters)
+
+
+def submission_variant(submission: Submission) -> rubric.Variant | None:
+    """The variant a submission is graded under, read from its row; None: the lesson's shipped cases."""
+    return as_variant(submission.variant) if submission.variant is not None else None
+
+
+def measured_variant(session: Session, submission: Submission) -> PoolVariant | None:
+    """The pool variant whose lesson runs this submission measures, or None for any other submission."""
+    return session.scalar(select(PoolVariant).where(PoolVariant.submission_id == submission.id))
+
+
+def measuring_submissions():
+    """SQL: the ids of the submissions that measure a pool's variants (an instructor's, graded only to check the
+    variant): not a student's work, left out of the grade exports."""
+    return select(PoolVariant.submission_id).where(PoolVariant.submission_id.is_not(None))
+
+
+def decide(session: Session, row: PoolVariant, *, kept: bool, reason: str | None, check: dict | None = None) -> None:
+    """Keep or drop a measuring variant (no commit); the pool is ready once none is left measuring."""
+    row.state = VariantState.KEPT if kept else VariantState.DROPPED
+    row.reason, row.check, row.decided_at = reason, check, utcnow()
+    session.flush()
+    pool = row.pool
+    if pool.state != PoolState.READY and all(v.state in (VariantState.KEPT, VariantState.DROPPED)
+                                             for v in pool.variants):
+        pool.state, pool.ready_at = PoolState.READY, utcnow()
+
+
+def drop_reason(check) -> str:
+    """Why a variant whose lab check failed is dropped: each failed condition with its evidence."""
+    failed = [c for c in check.conditions if not c.passed]
+    return "lab check failed: " + "; ".join(f"{c.id} ({c.title}): {c.evidence.splitlines()[0] if c.evidence else ''}"
+                                            for c in failed)
+
+
+def record_check(session: Session, submission: Submission, check, note: str) -> None:
+    """When `submission` measures a pool variant still measuring: keep it if its lab check passed, else drop it with
+    the failed conditions as its reason (no commit). A check that could not be evaluated (None) drops it with `note`."""
+    row = measured_variant(session, submission)
+    if row is None or row.state != VariantState.MEASURING:
+        return
+    if check is None:
+        decide(session, row, kept=False, reason=f"lab check not evaluated: {note}")
+    elif check.passed:
+        decide(session, row, kept=True, reason=None, check=check.model_dump(mode="json"))
+    else:
+        decide(session, row, kept=False, reason=drop_reason(check), check=check.model_dump(mode="json"))
+
+
+def record_failure(session: Session, submission: Submission, error: str) -> None:
+    """A measuring submission that could not be graded drops its variant with that error (no commit)."""
+    row = measured_variant(session, submission)
+    if row is not None and row.state == VariantState.MEASURING:
+        decide(session, row, kept=False, reason=f"measurement failed: {error}")
+
+
+def _dumped(spec) -> dict:
+    return spec.model_dump(mode="json", exclude_computed_fields=True)
+
+
+def runs_on(session: Session, other: PoolVariant, sheet, book, own: Submission) -> dict:
+    """The stored runs grading `sheet` on variant `other` needs, without running anything: each case the sheet asks
+    for under `other` (rubric.cases_to_run) taken from `other`'s measuring submission, else from the student's own runs,
+    wherever one holds exactly that spec; a case neither holds is left out (graded not measured there)."""
+    needed = {spec.name: _dumped(spec) for spec in rubric.cases_to_run(sheet, book, as_variant(other))}
+    measuring = session.get(Submission, other.submission_id)
+    results = {}
+    for run in [*measuring.case_runs, *own.case_runs]:
+        if run.name not in results and needed.get(run.name) == run.spec:
+            results[run.name] = stored_result(run)
+    return results
+
+
+def flag_copying(session: Session, submission: Submission, grade: Grade, report, book) -> list[CopyFlag]:
+    """Grade a variant submission's sheet on every other kept variant's stored runs (no case runs) and store the
+    copy evidence (rubric.copying.copy_evidence) against `grade`; the grade itself is never changed. Nothing for a
+    submission without a variant or one that measures a pool (no commit)."""
+    row = submission.variant
+    if row is None or measured_variant(session, submission) is not None:
+        return []
+    sheet = rubric.parse_sheet(submission.sheet, submission.part)
+    others = {other.name: rubric.grade_sheet(sheet, runs_on(session, other, sheet, book, submission), book,
+                                             as_variant(other))
+              for other in row.pool.variants
+              if other.id != row.id and other.state == VariantState.KEPT and other.submission_id is not None}
+    by_name = {v.name: v for v in row.pool.variants}
+    flags = []
+    found = copy_evidence(report, others)
+    for evidence in found:
+        flag = CopyFlag(submission_id=submission.id, grade_id=grade.id, variant_id=by_name[evidence.variant].id,
+                        items=evidence.items, own_expected=evidence.own_expected,
+                        other_expected=evidence.other_expected, summary=evidence.describe())
+        session.add(flag)
+        flags.append(flag)
+    return flags
+
+
+def try_flag_copying(session: Session, submission: Submission, grade: Grade, report, book) -> None:
+    """`flag_copying`, whose failure never blocks or changes a grade: it is logged and recorded as an event instead."""
+    if submission.variant_id is None:
+        return
+    try:
+        with session.begin_nested():
+            flag_copying(session, submission, grade, report, book)
+    except Exception as exc:  # noqa: BLE001 - copy evidence is for the instructor; the grade stands, the event says why
+        log.exception("copy evidence of submission %s failed", submission.id)
+        # a student reads their events: the type only, never a message that could name another variant's runs
+        session.add(Event(submission_id=submission.id, state="copy-evidence",
+                          detail=f"copy evidence not computed ({type(exc).__name__}); see the service log"))
+
+
+__all__ = ["as_variant", "decide", "drop_reason", "flag_copying", "measured_variant", "measuring_submissions", "runs_on",
+           "record_check", "record_failure", "submission_variant", "try_flag_copying"]

@@ -1,0 +1,311 @@
+"""An assignment's pool of per-student lab variants (issue 34): drawn by an instructor from a seed before the
+assignment opens, measured by the workers (each variant's lesson runs as the case runs of one measuring submission,
+reused by content key by every student on it), kept or dropped on its lab check (grader.core.variants.record_check);
+staff read the pool and the copy evidence stored at grading. Which variant a student works on:
+grader.services.setup.student_variants.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import Counter
+from datetime import datetime
+from pathlib import Path
+
+import yaml
+from pydantic import BaseModel, ValidationError
+from sqlalchemy import func, select
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+import rubric
+from rubric.scoring import lesson_run_specs
+
+from grader.core import lifecycle
+from grader.core.models import (Assignment, CopyFlag, PoolVariant, StudentVariant, Submission, User, VariantPool,
+                                utcnow)
+from grader.core.rubrics import course_rubric
+from grader.core.states import CaseRunState, PoolState, VariantState
+from grader.core.variants import as_variant, decide
+from grader.services.errors import Conflict, Invalid, NotFound
+from grader.services.identity import access
+from grader.services.sending import Sender
+from grader.services.submissions.submit import create_submission
+
+log = logging.getLogger(__name__)
+
+K_DEFAULT, K_MAX = 16, 64
+# The answers a measuring submission carries (the lesson's reference sheet; its grade is never a student's). Its
+# configs are the variant's own exercise and extension cases, so a student's config made from the variant's baseline
+# reuses their measurement (grader/core/content_key.py).
+REFERENCE_SHEET = Path(__file__).resolve().parents[3] / "examples" / "l03" / "reference.yaml"
+CONFIG_CASES = {"table_exercise": "friction-table-0.30", "extension": "N5"}
+
+
+class VariantRow(BaseModel):
+    """One variant of a pool as staff see it: its parameters, state and, when dropped, why."""
+
+    id: str
+    position: int
+    digest: str
+    state: str
+    reason: str | None
+    parameters: dict[str, float | int]
+    students: int
+    measuring_submission: int | None
+    check_passed: bool | None
+
+
+class PoolView(BaseModel):
+    assignment_id: int
+    lesson: str
+    space_version: str
+    space_hash: str
+    rubric_version: str
+    seed: int
+    k: int
+    state: str
+    kept: int
+    dropped: int
+    created_by: str
+    created_at: datetime
+    ready_at: datetime | None
+    rejected_draws: dict[str, int]
+    variants: list[VariantRow]
+
+
+class FlagRow(BaseModel):
+    """One piece of copy evidence: whose submission, which other variant its answers fit, on which items."""
+
+    submission_id: int
+    student: str
+    own_variant: str
+    fits_variant: str
+    items: list[str]
+    own_expected: dict[str, str]
+    other_expected: dict[str, str]
+    summary: str
+    created_at: datetime
+
+
+def pool_of(session: Session, assignment: Assignment) -> VariantPool | None:
+    return session.scalar(select(VariantPool).where(VariantPool.assignment_id == assignment.id))
+
+
+def _space_for(session: Session, assignment: Assignment):
+    book = course_rubric(session, assignment.course_id, assignment.lesson)
+    space = rubric.variant_space_for(book) if isinstance(book, rubric.Rubric) else None
+    if space is None:
+        raise Invalid("no variant space", [{"field": "assignment", "rule": (
+            f"the course grades {assignment.lesson} under rubric v{book.version}, which has no reviewed variant "
+            "space (rubric/lessons/*-lab-variants-*.yaml): its students all work on the lesson's shipped cases")}])
+    return book, space
+
+
+def generate(*, session: Session, assignment: Assignment, user: User, seed: int, k: int = K_DEFAULT) -> VariantPool:
+    """Draw and store a pool of `k` variants for `assignment` from `seed` (deterministic: rubric.draw_pool), each
+    'drawn' until `measure` sends its runs; commits. Instructors of the course only; refused once the assignment has
+    opened, while it has a pool already (one pool per assignment: its variants may be some student's), and for a
+    rubric version without a variant space."""
+    access.require_course_instructor(user, assignment.course_id, action="generate a variant pool",
+                                     thing="assignment")
+    rules = []
+    if not 1 <= k <= K_MAX:
+        rules.append({"field": "k", "rule": f"between 1 and {K_MAX} variants"})
+    if not 0 <= seed < 2**31:
+        rules.append({"field": "seed", "rule": "a whole number from 0 to 2147483647"})
+    if rules:
+        raise Invalid("invalid pool", rules)
+    if utcnow() >= assignment.open_at:
+        raise Conflict("the assignment has opened", [{"field": "assignment", "rule": (
+            f"a pool is generated before the assignment opens ({assignment.open_at:%Y-%m-%d %H:%M} UTC): students "
+            "already working on it would change lab")}])
+    existing = pool_of(session, assignment)
+    if existing is not None:
+        taken = session.scalar(select(func.count()).select_from(StudentVariant)
+                               .where(StudentVariant.assignment_id == assignment.id))
+        raise Conflict("the assignment has a pool", [{"field": "assignment", "rule": (
+            f"assignment {assignment.id} has a pool already (seed {existing.seed}, {existing.k} variants"
+            + (f", {taken} students on them" if taken else "") + "); an assignment keeps one pool")}])
+    book, space = _space_for(session, assignment)
+    try:
+        drawn = rubric.draw_pool(space, seed=seed, k=k)
+    except rubric.VariantPoolError as exc:
+        raise Invalid("the variant space cannot yield this pool", [{"field": "k", "rule": str(exc)}]) from None
+    pool = VariantPool(assignment_id=assignment.id, lesson=assignment.lesson, space_version=space.version,
+                       space_hash=space.content_hash, rubric_version=str(book.version), seed=seed, k=k,
+                       state=PoolState.MEASURING, rejected=[r.model_dump(mode="json") for r in drawn.rejected],
+                       created_by_id=user.id)
+    session.add(pool)
+    session.flush()
+    for position, variant in enumerate(drawn.variants, start=1):
+        session.add(PoolVariant(pool_id=pool.id, name=variant.id, position=position, parameters=variant.parameters,
+                                digest=variant.digest, state=VariantState.DRAWN))
+    try:
+        session.commit()
+    except IntegrityError:  # a concurrent generate won the assignment's one pool
+        session.rollback()
+        raise Conflict("the assignment has a pool", [{"field": "assignment",
+                                                      "rule": "another pool was generated meanwhile"}]) from None
+    session.refresh(pool)
+    return pool
+
+
+def screen(row: PoolVariant, space) -> list[str]:
+    """Why a stored variant may not be measured: its parameters are not the lesson's, break a constraint of the pool's
+    space, or build a case the schema refuses. Empty when it may."""
+    try:
+        variant = as_variant(row)
+    except ValidationError as exc:
+        return [f"parameters: {line}" for line in rubric.describe_errors(exc)]
+    varying = {name: variant.parameters[name] for name in space.parameters}
+    problems = [f"constraint {violation}" for violation in space.violations(varying)]
+    try:
+        rubric.variant_cases(variant.parameters)
+    except rubric.InvalidVariant as exc:
+        problems += [f"invalid case: {p}" for p in exc.problems]
+    return problems
+
+
+def measuring_sheet(variant: rubric.Variant) -> dict:
+    """A measuring submission's sheet: the reference answers, the variant's exercise and extension cases as configs."""
+    sheet = yaml.safe_load(REFERENCE_SHEET.read_text())
+    cases = variant.cases()
+    sheet["student"] = f"variant-{variant.id}"
+    sheet["configs"] = {role: cases[name].model_dump(mode="json", exclude_computed_fields=True)
+                        for role, name in CONFIG_CASES.items()}
+    return sheet
+
+
+def measure(*, session: Session, pool: VariantPool, user: User, sender: Sender) -> list[PoolVariant]:
+    """Screen every drawn variant of `pool` (a broken one is dropped with its reason, nothing run) and queue the
+    others' lesson runs, each variant as one measuring submission by `user` under that variant; what a stored
+    measurement covers is reused at once. Commits, then sends. The variants are kept or dropped as their lab checks
+    land (grader.core.variants.record_check, in the worker). Returns the variants now measuring."""
+    access.require_course_instructor(user, pool.assignment.course_id, action="measure a variant pool",
+                                     thing="assignment")
+    space = rubric.load_variant_space(pool.lesson, pool.space_version)
+    if space.content_hash != pool.space_hash:
+        raise Conflict("the variant space changed", [{"field": "space_version", "rule": (
+            f"{pool.lesson} variant space v{pool.space_version} no longer has the content this pool was drawn from")}])
+    book = course_rubric(session, pool.assignment.course_id, pool.lesson)
+    measuring, to_grade, to_send = [], [], []
+    for row in pool.variants:
+        if row.state != VariantState.DRAWN:
+            continue
+        problems = screen(row, space)
+        if problems:
+            row.state = VariantState.MEASURING
+            decide(session, row, kept=False, reason="parameters refused before measuring: " + "; ".join(problems))
+            continue
+        variant = as_variant(row)
+        sheet = measuring_sheet(variant)
+        specs = rubric.cases_to_run(rubric.parse_sheet(sheet), book, variant)
+        submission = create_submission(session=session, student=user, lesson=pool.lesson, sheet=sheet, specs=specs,
+                                       force_rerun=False)
+        submission.variant_id = row.id
+        row.submission_id, row.state = submission.id, VariantState.MEASURING
+        session.flush()
+        if lifecycle.reuse_at_admission(session=session, submission=submission):
+            to_grade.append(submission.id)
+        to_send += [run for run in submission.case_runs if run.status == CaseRunState.QUEUED]
+        measuring.append(row)
+    session.commit()
+    for submission_id in to_grade:
+        try:
+            sender.send_grade(submission_id)
+        except Exception:  # stored as 'grading': the reconciler re-sends its grade task
+            log.exception("could not enqueue the grading of measuring submission %s", submission_id)
+    for run in to_send:
+        try:
+            sender.send_case_run(run.id, run.delivery, run.backend, priority=lifecycle.NEW_PRIORITY)
+        except Exception:  # stored and queued: the reconciler re-sends it
+            log.exception("could not enqueue case run %s of a variant pool", run.id)
+    return measuring
+
+
+def generate_and_measure(*, session: Session, assignment: Assignment, user: User, seed: int, k: int = K_DEFAULT,
+                         sender: Sender) -> VariantPool:
+    """`generate` then `measure`: what the API and the command line do."""
+    pool = generate(session=session, assignment=assignment, user=user, seed=seed, k=k)
+    measure(session=session, pool=pool, user=user, sender=sender)
+    session.refresh(pool)
+    return pool
+
+
+def top_up(*, session: Session, assignment: Assignment, user: User, sender: Sender) -> list[PoolVariant]:
+    """Draw the pool further until it may keep K variants: the next draws of the same seed (draws are sequential, so
+    the pool stays reproducible), one per variant dropped, measured like the first. Instructors of the course only,
+    once the pool is ready with fewer than K kept, before the assignment opens and while no student has a variant.
+    Returns the variants added."""
+    access.require_course_instructor(user, assignment.course_id, action="draw a variant pool further",
+                                     thing="assignment")
+    pool = pool_of(session, assignment)
+    if pool is None:
+        raise NotFound(f"assignment {assignment.id} has no variant pool")
+    kept = sum(v.state == VariantState.KEPT for v in pool.variants)
+    rule = None
+    if pool.state != PoolState.READY:
+        rule = "its variants are still being measured: top up once every one is kept or dropped"
+    elif kept >= pool.k:
+        rule = f"it keeps {kept} of the {pool.k} variants asked for already"
+    elif utcnow() >= assignment.open_at:
+        rule = "the assignment has opened: students already working on it would change lab"
+    elif session.scalar(select(func.count()).select_from(StudentVariant)
+                        .where(StudentVariant.assignment_id == assignment.id)):
+        rule = "students have variants of it already"
+    if rule is not None:
+        raise Conflict("the pool is not drawn further", [{"field": "assignment", "rule": rule}])
+    space = rubric.load_variant_space(pool.lesson, pool.space_version)
+    drawn_so_far = len(pool.variants)
+    try:
+        drawn = rubric.draw_pool(space, seed=pool.seed, k=drawn_so_far + pool.k - kept)
+    except rubric.VariantPoolError as exc:
+        raise Invalid("the variant space cannot yield more variants", [{"field": "k", "rule": str(exc)}]) from None
+    added = [PoolVariant(pool_id=pool.id, name=v.id, position=drawn_so_far + n, parameters=v.parameters,
+                         digest=v.digest, state=VariantState.DRAWN)
+             for n, v in enumerate(drawn.variants[drawn_so_far:], start=1)]
+    session.add_all(added)
+    pool.state, pool.ready_at = PoolState.MEASURING, None
+    session.commit()
+    session.refresh(pool)
+    measure(session=session, pool=pool, user=user, sender=sender)
+    return added
+
+
+def pool_view(*, session: Session, assignment: Assignment, user: User) -> PoolView | None:
+    """The pool with every variant's parameters, state and reason: staff of the course only (a student never reads
+    another variant's parameters). None when the assignment has no pool (its students work on the shipped lab)."""
+    if user.course_id != assignment.course_id:
+        raise NotFound("assignment not found")
+    access.require_staff(user, action="read a variant pool")
+    pool = pool_of(session, assignment)
+    if pool is None:
+        return None
+    students = Counter(session.scalars(select(StudentVariant.variant_id)
+                                       .where(StudentVariant.assignment_id == assignment.id)).all())
+    rows = [VariantRow(id=v.name, position=v.position, digest=v.digest, state=v.state, reason=v.reason,
+                       parameters=v.parameters, students=students.get(v.id, 0), measuring_submission=v.submission_id,
+                       check_passed=(v.check or {}).get("passed") if v.check else None) for v in pool.variants]
+    creator = session.get(User, pool.created_by_id)
+    return PoolView(assignment_id=assignment.id, lesson=pool.lesson, space_version=pool.space_version,
+                    space_hash=pool.space_hash, rubric_version=pool.rubric_version, seed=pool.seed, k=pool.k,
+                    state=pool.state, kept=sum(r.state == VariantState.KEPT for r in rows),
+                    dropped=sum(r.state == VariantState.DROPPED for r in rows), created_by=creator.name,
+                    created_at=pool.created_at, ready_at=pool.ready_at,
+                    rejected_draws=dict(Counter(reason.split(":")[0] for r in pool.rejected for reason in r["reasons"])),
+                    variants=rows)
+
+
+def copy_flags(*, session: Session, assignment: Assignment, user: User) -> list[FlagRow]:
+    """The copy evidence stored for the assignment's graded submissions, newest first: staff of the course only."""
+    if user.course_id != assignment.course_id:
+        raise NotFound("assignment not found")
+    access.require_staff(user, action="read copy evidence")
+    flags = session.scalars(select(CopyFlag).join(Submission, CopyFlag.submission_id == Submission.id)
+                            .where(Submission.assignment_id == assignment.id)
+                            .order_by(CopyFlag.id.desc())).all()
+    return [FlagRow(submission_id=f.submission_id, student=f.submission.student.name,
+                    own_variant=f.submission.variant.name if f.submission.variant else "",
+                    fits_variant=f.variant.name, items=f.items, own_expected=f.own_expected,
+                    other_expected=f.other_expected, summary=f.summary, created_at=f.created_at) for f in flags]

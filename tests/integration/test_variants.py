@@ -1,0 +1,186 @@
+"""Per-student lab variants on the real stack (PostgreSQL, Redis, a Celery worker running Genesis on CPU): a pool of
+4 variants drawn and measured by the worker, one broken on purpose and dropped with its reason; two students on
+different variants submit the same sheet and get different grades, each equal to `grader grade --variant` on this
+machine; the student whose answers are another variant's is flagged naming the items and that variant."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import subprocess
+import sys
+import time
+
+import pytest
+import yaml
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+import rubric
+from rubric.scoring import LESSON_RUNS
+from grader.core.models import Assignment, CaseRun, Grade, PoolVariant, User, VariantPool
+from tests import services
+from tests.factories import reference_sheet
+from tests.integration.helpers import WAIT_LIMIT_S, at, submit_and_wait, wait_until
+
+pytestmark = pytest.mark.integration
+
+# Seed 391's variants differ pairwise in N4's timing, the table friction and the extension's timing. Measured on CPU,
+# its first fails the lesson's own check (N2's proxy above N1's: more substeps did not reduce it), the next two pass.
+SEED = 391
+FAILS_CHECK, KEPT, BROKEN = "v391-1", ["v391-2", "v391-3"], "v391-4"
+
+# Generate the pool through the service, break its fourth variant (the low lane above the table, so B1 would have no
+# answer), then measure: run in a process of the stack's own environment, so its case runs go to the stack's broker.
+GENERATE = """
+import sys
+from sqlalchemy import select
+from grader import dispatch
+from grader.core.db import new_session
+from grader.core.models import Assignment, User
+from grader.services.setup import variants
+
+with new_session() as session:
+    prof = session.scalar(select(User).where(User.name == "prof"))
+    pool = variants.generate(session=session, assignment=session.get(Assignment, int(sys.argv[1])), user=prof,
+                             seed=int(sys.argv[2]), k=4)
+    broken = pool.variants[3]
+    broken.parameters = {**broken.parameters, "low_lane_friction": 0.7}
+    session.commit()
+    variants.measure(session=session, pool=pool, user=prof, sender=dispatch)
+"""
+
+
+def sheet_right_for(parameters: dict) -> dict:
+    """The reference sheet with the answers that depend on the lab's numbers (C1: N4's timing, C5: the low lane's
+    pair value, H1: the exercise's pair values, X1: the extension's timing) right for a variant with `parameters`,
+    and its exercise and extension configs made from that variant's baseline."""
+    from grader.services.setup.variants import measuring_sheet
+
+    variant = rubric.Variant(id="v0-0", parameters=parameters)
+    cases = variant.cases()
+    n4, n5 = cases["N4"], cases["N5"]
+    sheet = reference_sheet()
+    answers = sheet["answers"]
+    answers["C1"] = {"substep_dt": {"value": n4.dt / n4.substeps, "unit": "s"}, "samples": n4.n_steps,
+                     "internal_updates": n4.n_steps * n4.substeps}
+    answers["C5"] = {"pair_friction": parameters["table_friction"]}
+    high = parameters["high_lane_friction"]
+    answers["H1"] = {"baseline": {"low": parameters["table_friction"], "high": high},
+                     "modified": {"low": parameters["exercise_table_friction"], "high": high}}
+    answers["X1"] = {**answers["X1"], "substep_dt": {"value": round(n5.dt / n5.substeps * 1000, 6), "unit": "ms"},
+                     "samples": n5.n_steps, "internal_updates": n5.n_steps * n5.substeps}
+    sheet["configs"] = measuring_sheet(variant)["configs"]
+    return sheet
+
+
+def grade_offline(stack, sheet: dict, variant: dict, folder) -> dict:
+    """`grader grade SHEET --variant JSON --json` on this machine (its own Genesis runs): the report."""
+    folder.mkdir()
+    (folder / "sheet.yaml").write_text(yaml.safe_dump(sheet))
+    done = subprocess.run([sys.executable, "-m", "grader.cli", "grade", str(folder / "sheet.yaml"), "--out",
+                           str(folder / "out"), "--json", "--variant", json.dumps(variant)],
+                          cwd=services.ROOT, env=stack.env, capture_output=True, text=True, timeout=WAIT_LIMIT_S)
+    assert done.returncode in (0, 2), done.stderr[-3000:]
+    return json.loads(done.stdout)
+
+
+def scored(report: dict) -> dict:
+    return {item["id"]: (item["verdict"], item["score"], item["max_score"]) for item in report["items"]}
+
+
+def test_a_measured_pool_grades_each_student_on_their_own_variant_and_flags_copied_answers(stack, tmp_path):
+    prof = stack.client("prof")
+    assignment = prof.create_assignment("l03-test", {
+        "title": "Own lab", "part": "sheet", "open_at": at(hours=1), "due_at": at(days=2),
+        "hard_close_at": at(days=3)})
+
+    started = time.monotonic()
+    done = subprocess.run([sys.executable, "-c", GENERATE, str(assignment["id"]), str(SEED)], cwd=services.ROOT,
+                          env=stack.env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-3000:]
+    pool = wait_until(lambda: (p := prof.variants(assignment["id"]))["state"] == "ready" and p,
+                      "the pool's variants measured and checked")
+    measured_s = time.monotonic() - started
+    states = {v["id"]: (v["state"], v["reason"]) for v in pool["variants"]}
+    assert states[BROKEN][0] == "dropped" and "lanes_straddle_table" in states[BROKEN][1], states
+    assert "refused before measuring" in states[BROKEN][1]
+    assert [v["id"] for v in pool["variants"] if v["state"] == "kept"] == KEPT, states
+    assert states[FAILS_CHECK][0] == "dropped", states
+    assert states[FAILS_CHECK][1].startswith("lab check failed: substeps_reduce_proxy"), states
+    assert (pool["kept"], pool["dropped"]) == (2, 2)
+    with Session(stack.engine) as session:
+        measuring = [v.submission_id for v in session.scalars(
+            select(PoolVariant).join(VariantPool).where(VariantPool.assignment_id == assignment["id"]))
+            if v.submission_id]
+        runs = session.scalars(select(CaseRun).where(CaseRun.submission_id.in_(measuring))).all()
+        ran = [r for r in runs if r.reused_from_id is None]
+    (tmp_path / "timing.json").write_text(json.dumps({"pool_measured_s": measured_s, "runs": len(runs),
+                                                      "ran": len(ran)}))
+    print(f"\npool of 4 (1 dropped before measuring, 1 by its check): {len(runs)} case runs, {len(ran)} run in Genesis, ready in "
+          f"{measured_s:.1f} s")
+
+    # The assignment opens; each student's variant is fixed at their first visit (grader.services.setup).
+    with Session(stack.engine) as session:
+        row = session.get(Assignment, assignment["id"])
+        row.open_at = row.open_at.replace(year=row.open_at.year - 1)
+        session.commit()
+        from grader.services.setup import student_variants
+
+        given = {}
+        for who in ("alice", "bob"):
+            student = session.scalar(select(User).where(User.name == who))
+            fixed = student_variants.variant_for(session=session, assignment=row, student=student)
+            given[who] = {"id": fixed.name, "parameters": fixed.parameters}
+        session.commit()
+    assert sorted((given["alice"]["id"], given["bob"]["id"])) == KEPT
+
+    # Both submit the sheet that is right for alice's lab: bob's answers are alice's.
+    sheet = sheet_right_for(given["alice"]["parameters"])
+    graded = {}
+    for who in ("alice", "bob"):
+        created, final = submit_and_wait(stack, sheet, who=who, assignment_id=assignment["id"])
+        assert final["status"] == "graded", final
+        with Session(stack.engine) as session:
+            grade = session.scalar(select(Grade).where(Grade.submission_id == created["id"],
+                                                       Grade.superseded_at.is_(None)))
+            own = session.scalars(select(CaseRun).where(CaseRun.submission_id == created["id"])).all()
+            graded[who] = (created["id"], grade.report)
+        assert grade.report["variant"] == given[who]["id"]
+        # every lesson run is the pool's measurement of the student's own variant: nothing ran for the student
+        assert all(run.reused_from_id is not None for run in own if run.name in LESSON_RUNS), \
+            [(r.name, r.reused_from_id) for r in own]
+    alice, bob = graded["alice"][1], graded["bob"][1]
+    assert alice["total"] != bob["total"] and alice["total"] > bob["total"], (scored(alice), scored(bob))
+    for item in ("C1", "C5"):
+        assert scored(alice)[item][0] == "credit" and scored(bob)[item][0] == "no_credit", item
+
+    # What `grader grade --variant` gives for that sheet under each variant, measured on this machine.
+    for who in ("alice", "bob"):
+        offline = grade_offline(stack, sheet, given[who], tmp_path / who)
+        assert offline["variant"] == given[who]["id"]
+        assert scored(offline) == scored(graded[who][1]), who
+        assert offline["total"] == graded[who][1]["total"]
+
+    # Copy evidence: bob's answers fit alice's variant, not his own; alice's fit hers. Staff only.
+    flags = prof.copy_flags(assignment["id"])
+    assert [f["submission_id"] for f in flags] == [graded["bob"][0]], flags
+    (flag,) = flags
+    assert flag["student"] == "bob" and flag["own_variant"] == given["bob"]["id"]
+    assert flag["fits_variant"] == given["alice"]["id"] and {"C1", "C5"} <= set(flag["items"]), flag
+    assert given["alice"]["id"] in flag["summary"]
+    assert stack.client("bob").http.get(f"/assignments/{assignment['id']}/copy-flags").status_code == 403
+    assert stack.client("bob").http.get(f"/assignments/{assignment['id']}/variants").status_code == 403
+    # the course's grade export names each row's variant; the pool's measuring submissions are no rows of it
+    exported = prof.http.get("/courses/l03-test/grades.csv")
+    assert exported.status_code == 200, exported.text
+    rows = list(csv.DictReader(io.StringIO(exported.text)))
+    mine = {int(r["submission_id"]): r for r in rows if int(r["submission_id"]) in (graded["alice"][0],
+                                                                                    graded["bob"][0])}
+    assert {sid: r["variant"] for sid, r in mine.items()} == {graded[w][0]: given[w]["id"] for w in ("alice", "bob")}
+    assert not {int(r["submission_id"]) for r in rows} & set(measuring)
+    # the grades stand as graded: the evidence changed nothing
+    with Session(stack.engine) as session:
+        assert session.scalar(select(Grade.total).where(Grade.submission_id == graded["bob"][0],
+                                                        Grade.superseded_at.is_(None))) == bob["total"]
