@@ -35,10 +35,38 @@ def _clock(request):
         yield at
 
 
+def pytest_addoption(parser):
+    parser.addoption("--shuffle-seed", type=int, default=None, metavar="N",
+                     help="run the tests in a random order drawn from seed N: the modules shuffled, and the tests "
+                          "within each module (as pytest-randomly orders them; the same N gives the same order)")
+
+
+def pytest_report_header(config):
+    seed = config.getoption("--shuffle-seed")
+    return None if seed is None else f"tests shuffled with --shuffle-seed={seed}"
+
+
 def pytest_collection_modifyitems(config, items):
     """Under pytest-xdist (`make test`: --dist loadgroup), an integration module stays whole on one test process: its
     tests share module fixtures (a second host, a private broker, a browser walk's pages) that are costly to build
-    twice. Every other test is scheduled on its own, wherever a process is free."""
+    twice. Every other test is scheduled on its own, wherever a process is free.
+
+    `--shuffle-seed=N` reorders them first (issue 37: no test may depend on the order or on another test's rows).
+    A module's tests stay together, so module fixtures are built once; every xdist process draws the same order from
+    the same seed, as xdist requires, and loadgroup hands out the groups in that shuffled order."""
+    seed = config.getoption("--shuffle-seed")
+    if seed is not None:
+        import random
+
+        rng = random.Random(seed)
+        modules: dict[object, list] = {}
+        for item in items:
+            modules.setdefault(item.path, []).append(item)
+        buckets = list(modules.values())
+        rng.shuffle(buckets)
+        for bucket in buckets:
+            rng.shuffle(bucket)
+        items[:] = [item for bucket in buckets for item in bucket]
     for item in items:
         if "integration" in item.path.parts and not item.get_closest_marker("xdist_group"):
             item.add_marker(pytest.mark.xdist_group(item.path.stem))

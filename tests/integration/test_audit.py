@@ -112,15 +112,13 @@ def test_precision_64_against_32_on_the_cpu_differs_and_is_classified_with_figur
 
 
 def test_postgresql_refuses_to_update_delete_or_truncate_an_entry(stack, source_runs):
-    with Session(stack.engine) as session:
-        entry_id = session.scalar(select(AuditEntry.id).order_by(AuditEntry.id).limit(1))
-        if entry_id is None:  # this test alone: store one entry to try it on
-            entry = AuditEntry(course_id=None, lesson="L03", case="N1", spec_key="k", spec={},
-                               left_case_run_id=source_runs["N1"], left_variant="cpu/32/warm",
-                               right_variant="cpu/64/warm", classification="not_compared", summary="test", figures=[])
-            session.add(entry)
-            session.commit()
-            entry_id = entry.id
+    with Session(stack.engine) as session:  # an entry of its own to try it on, whatever other tests stored
+        entry = AuditEntry(course_id=None, lesson="L03", case="N1", spec_key="k", spec={},
+                           left_case_run_id=source_runs["N1"], left_variant="cpu/32/warm",
+                           right_variant="cpu/64/warm", classification="not_compared", summary="test", figures=[])
+        session.add(entry)
+        session.commit()
+        entry_id = entry.id
     for statement in (f"UPDATE audit_entries SET classification = 'identical' WHERE id = {entry_id}",
                       f"DELETE FROM audit_entries WHERE id = {entry_id}", "TRUNCATE audit_entries"):
         with Session(stack.engine) as session:

@@ -114,11 +114,11 @@ def test_a_failed_and_a_stuck_run_are_resent_from_the_dashboard_and_graded(brows
     from grader.core.models import User
     from grader.core.settings import settings
 
-    _, token = _student(stack, "carol")
+    user_id, token = _student(stack, "carol")
     carol = Client(stack.url, token)
     sheet = reference_sheet() | {"student": "carol"}
     with Session(stack.engine) as session:
-        user = session.scalar(select(User).where(User.name == "carol"))
+        user = session.get(User, user_id)  # this course's Carol, not test_regrade's of another course
         submission = submissions.create_submission(session=session, student=user, lesson="L03", sheet=sheet,
                                             specs=sheets.cases_to_run(sheets.parse_sheet(sheet), load_rubric("L03")), force_rerun=False)
         session.flush()

@@ -15,7 +15,7 @@ import pytest
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from grader.core.models import CaseRun, RubricVersion, User
+from grader.core.models import CaseRun, Course, RubricVersion, User
 from tests.factories import reference_sheet
 from tests.grader.services.rubrics.test_tolerance_review import precision_twin
 from tests.integration.helpers import submit_and_wait
@@ -52,7 +52,8 @@ def _precision_twin(stack, submission_id: int) -> int:
     with Session(stack.engine) as session:
         run = session.scalar(select(CaseRun).where(CaseRun.submission_id == submission_id, CaseRun.name == "N1"))
         entries = precision_twin(session, run, stored_result(run),
-                                 session.scalar(select(User).where(User.name == "aude")))
+                                 session.scalar(select(User).join(Course).where(User.name == "aude",
+                                                                                 Course.name == COURSE)))
         assert len(entries) == 1 and entries[0].right_variant.startswith("cpu/64/"), entries
         return entries[0].id
 
