@@ -98,3 +98,24 @@ class AuditEntryPublic(BaseModel):
     comparison: dict[str, Any] | None
     figures: list[str]
     requested_by_id: int | None
+
+
+class RosterStudentPublic(BaseModel):
+    """A student of the course as the roster holds them (never a token or a sign-in link)."""
+
+    student: str = Field(description="The student id (their name in the service)")
+    name: str | None
+    email: str | None
+
+
+class CourseChangePublic(BaseModel):
+    """One change to the course's set-up, with who made it and when; `detail` holds the values before and after."""
+
+    id: int
+    at: UtcDateTime
+    by: str
+    kind: str = Field(description="course_settings, assignment_created, assignment_edited, released, "
+                                  "extension_granted, extension_revoked, roster_imported or sign_in_link_issued")
+    assignment_id: int | None
+    summary: str
+    detail: dict[str, Any]
