@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pytest
 
+pytestmark = pytest.mark.clock("2026-11-27T12:00:00Z")
 CSV = "student_id,name,email\ns1001,Ada Lovelace,ada@example.edu\ns1002,Zhang Wei 张伟,wei@example.edu\n"
 
 
