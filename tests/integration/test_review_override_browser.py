@@ -104,7 +104,7 @@ def test_a_review_request_answered_with_an_override_reaches_the_report_the_csv_a
         errors = prof_page.inner_text("#override-errors")
         if lang == "en":
             assert "The score was not set; nothing was changed." in errors
-            assert "New score: must be from 0 to 1, item C2's points" in errors and "score:" not in errors
+            assert "New score: must be from 0 to 1, item C2's points" in errors and "\nscore:" not in errors
             assert prof_page.input_value("#override-comment") == "Typed with care: C2's reason is the lesson's own. "
         else:
             assert "分数未设置" in errors and "评语" in errors and "新分数" in errors

@@ -83,7 +83,7 @@ def test_an_instructor_reviews_signs_off_drafts_and_regrades_in_the_browser(brow
     entry = _precision_twin(stack, review_class)
     page = _signed_in(browser, stack, "ivan")
     page.goto(f"{stack.url}/courses/{COURSE}/rubrics")
-    assert page.inner_text("#signoff-2").strip() == "pending"
+    assert page.inner_text("#signoff-2").strip() == "not signed off yet"
     page.click("#review-link-2")
     page.wait_for_selector("#tolerances")
     assert "Instructor sign-off pending." in page.inner_text("#signoff-state")
@@ -161,5 +161,5 @@ def test_an_instructor_reviews_signs_off_drafts_and_regrades_in_the_browser(brow
     page.click("#commit button[type=submit]")
     page.wait_for_selector("#regrades")
     assert page.inner_text("#current-version") == "v3"
-    assert page.inner_text("#signoff-3").strip() == "pending"  # a new version's sign-off starts pending
+    assert page.inner_text("#signoff-3").strip() == "not signed off yet"  # a new version's sign-off starts pending
     page.screenshot(path=str(SHOTS / "rubrics-after-commit.png"), full_page=True)

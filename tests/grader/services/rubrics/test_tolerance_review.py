@@ -138,7 +138,7 @@ def _signoff_flow(api):
     assert re.search(r"by prof, \d{4}-\d\d-\d\d \d\d:\d\d UTC: checked against the audit log", page)
     listed = api.client.get("/courses/l03/rubrics", headers=api.as_("prof")).text
     assert re.search(r'id="signoff-2"><div>signed off by prof', listed)
-    assert re.search(r'id="signoff-1"><span class="verdict verdict-pending">pending', listed)
+    assert re.search(r'id="signoff-1"><span class="verdict verdict-pending">not signed off yet', listed)
     assert f'href="{PAGE}"' in listed
     # twice by the same instructor: refused, named; an auditor, a student, another site: refused, nothing stored
     again = api.client.post(f"{PAGE}/signoff", data={"note": ""}, headers=api.as_("prof"))
