@@ -105,3 +105,24 @@ class VariantPoolCreate(BaseModel):
 
     seed: int = Field(ge=0, le=2**31 - 1, description="The draw's seed: the same seed draws the same pool")
     k: int = Field(default=16, ge=1, le=64, description="How many variants to draw and measure")
+
+
+class RosterStudentPublic(BaseModel):
+    """A student of the course as the roster holds them (never a token or a sign-in link)."""
+
+    student: str = Field(description="The student id (their name in the service)")
+    name: str | None
+    email: str | None
+
+
+class CourseChangePublic(BaseModel):
+    """One change to the course's set-up, with who made it and when; `detail` holds the values before and after."""
+
+    id: int
+    at: UtcDateTime
+    by: str
+    kind: str = Field(description="course_settings, assignment_created, assignment_edited, released, "
+                                  "extension_granted, extension_revoked, roster_imported or sign_in_link_issued")
+    assignment_id: int | None
+    summary: str
+    detail: dict[str, Any]

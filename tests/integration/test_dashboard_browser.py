@@ -19,6 +19,7 @@ from tests import services
 from tests.factories import reference_sheet
 from tests.integration.helpers import (SHOTS, WAIT_LIMIT_S, case_runs, events, grades_of, images_decoded, signed_in,
                                        wait_until)
+from tests.integration.layout import pages_in_both_languages
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 COURSE = "l03-test"
@@ -88,10 +89,38 @@ def test_predictions_and_measurements_by_backend_equal_the_json_and_the_charts_l
     page.locator("#predictions").scroll_into_view_if_needed()
     page.screenshot(path=SHOTS / "instructor_dashboard_predictions.png", full_page=True)
 
+    # Score distributions of like with like: one per assignment and one per maximum outside assignments, each with
+    # its own "of MAX"; never an 8-point checkpoint attempt in a 30-point sheet's bins.
+    groups = data["score_groups"]
+    assert groups and all(g["distribution"][-1]["high"] == g["max_total"] for g in groups)
+    assert len({(g["assignment_id"], g["max_total"]) for g in groups}) == len(groups)
+    free = [g for g in groups if g["assignment_id"] is None]
+    assert [g["max_total"] for g in free] == sorted({g["max_total"] for g in free})
+    for g in groups:
+        key = g["assignment_id"] or f"free-{g['max_total']:g}"
+        assert page.locator(f"#distribution-{key} tbody tr").count() == len(g["distribution"])
+        summary = page.locator(f"#distribution-{key}").locator("xpath=preceding-sibling::p[1]").inner_text()
+        assert summary.endswith(f"of {g['max_total']:g}") and summary.startswith(f"{g['n']} student"), summary
+    # the per-day counts are the course's calendar days, and the heading says which zone
+    zone = stack.client("prof").course(COURSE)["timezone"]
+    assert page.locator(f"h2:text-is('Submissions per day ({zone})')").count() == 1
+    pages_in_both_languages(browser, lambda b, **kw: _signed_in(b, stack, "prof", **kw),
+                            f"{stack.url}/courses/{COURSE}/dashboard", SHOTS, "dashboard", ready="#what-changed",
+                            fits=False)
+
     student = signed_in(browser, stack, "alice")
     for url in charts:
         assert student.request.get(f"{stack.url}{url}").status == 404, url
         assert page.request.get(f"{stack.url}{url}").status == 200, url
+
+
+def _signed_in(browser, stack, who: str, *, locale: str = "en", width: int = 1280):
+    page = browser.new_page(viewport={"width": width, "height": 900}, locale=locale)
+    page.goto(f"{stack.url}/submissions")
+    page.fill("#token", stack.tokens[who])
+    page.click("form[action='/sign-in'] button[type=submit]")
+    page.wait_for_selector("header .who")
+    return page
 
 
 def _student(stack, name: str) -> tuple[int, str]:

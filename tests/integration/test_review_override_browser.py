@@ -13,7 +13,9 @@ import httpx
 import pytest
 
 from tests.grader.services.setup.test_assignments import checkpoint_sheet
+from tests.integration.a11y import assert_accessible
 from tests.integration.helpers import SHOTS, at, measured_course_api, signed_in
+from tests.integration.layout import assert_fits, pages_in_both_languages
 
 pytestmark = pytest.mark.integration
 COURSE = "l03-review"
@@ -26,6 +28,15 @@ def api(tmp_path_factory, measured):
     """The API alone (uvicorn) on a fresh PostgreSQL database where the lesson's cases were measured."""
     with measured_course_api(tmp_path_factory.mktemp("review-override"), measured, course=COURSE) as running:
         yield running
+
+
+def _signed_in(browser, api, who: str, *, locale: str = "en", width: int = 1280):
+    page = browser.new_page(viewport={"width": width, "height": 900}, locale=locale)
+    page.goto(f"{api.url}/submissions")
+    page.fill("#token", api.tokens[who])
+    page.click("form[action='/sign-in'] button[type=submit]")
+    page.wait_for_selector("header .who")
+    return page
 
 
 def _get(api, who: str, path: str) -> httpx.Response:
@@ -58,19 +69,57 @@ def test_a_review_request_answered_with_an_override_reaches_the_report_the_csv_a
     page.click("#open-reviews a[href*='/reviews#request-']")
     page.wait_for_selector("#open-requests")
     assert MESSAGE in page.inner_text("#open-requests")
+    # the queue shows the item as it stands now: its score of its points and its measured verdict
+    assert page.inner_text("#open-requests .item-now").startswith("Item now: 1 of 1 points · credit")
     SHOTS.mkdir(parents=True, exist_ok=True)
     page.screenshot(path=str(SHOTS / "review-queue.png"), full_page=True)
+    queue = page.url.split("#")[0]
+    pages_in_both_languages(browser, lambda b, **kw: _signed_in(b, api, "prof", **kw), queue, SHOTS, "review-queue",
+                            ready="#open-requests")
     request = page.locator("#open-requests article.review").first
     request.locator("textarea[name=answer]").fill(ANSWER)
     request.locator("input[name=score]").fill("0.5")
     request.locator("button[type=submit]").click()
     page.wait_for_selector("#answered")
     assert "set to 0.5" in page.inner_text("#answered") and page.locator("#no-open").count() == 1
+    assert "0.5 of 1 points, credit" in page.inner_text("#answered")  # the item now, after the answer's override
+    assert_fits(page, "review queue, answered")
     page.screenshot(path=str(SHOTS / "review-queue-answered.png"), full_page=True)
     page.goto(f"{api.url}/submissions/{sid}")
     override = page.inner_text("#override-C3")
     assert "0.5 / 1" in override and ANSWER in override and "credit" in override
     page.locator("#review").screenshot(path=str(SHOTS / "report-override-instructor.png"))
+
+    # A refused override (a score above the item's points, a comment of spaces) is the report again: the errors
+    # beside the form, named by the form's labels, and what was typed kept; nothing is stored.
+    for lang, width in (("en", 1280), ("zh-CN", 390), ("en", 390), ("zh-CN", 1280)):
+        prof_page = _signed_in(browser, api, "prof", locale=lang, width=width)
+        prof_page.goto(f"{api.url}/submissions/{sid}")
+        prof_page.select_option("#override-item", "C2")
+        prof_page.fill("#override-score", "3")
+        prof_page.fill("#override-comment", "Typed with care: C2's reason is the lesson's own. " if lang == "en"
+                       else "   ")
+        prof_page.click("#override-form button[type=submit]")
+        prof_page.wait_for_selector("#override-errors")
+        errors = prof_page.inner_text("#override-errors")
+        if lang == "en":
+            assert "The score was not set; nothing was changed." in errors
+            assert "New score: must be from 0 to 1, item C2's points" in errors and "\nscore:" not in errors
+            assert prof_page.input_value("#override-comment") == "Typed with care: C2's reason is the lesson's own. "
+        else:
+            assert "分数未设置" in errors and "评语" in errors and "新分数" in errors
+        assert prof_page.input_value("#override-score") == "3" and prof_page.input_value("#override-item") == "C2"
+        assert prof_page.get_attribute("#override-score", "aria-invalid") == "true"
+        assert prof_page.url.endswith(f"/submissions/{sid}/overrides#override-form")
+        if width == 1280:  # on a phone the report's own #case-runs and #lane-table scroll without a focus stop
+            # (axe scrollable-region-focusable; the report page's, not this form's): reported to its owner
+            assert_accessible(prof_page, f"override refused ({lang}, {width} px)")
+        prof_page.locator("#override-form").scroll_into_view_if_needed()
+        prof_page.screenshot(path=str(SHOTS / f"report-override-refused-{lang[:2]}-{width}.png"), full_page=True)
+        prof_page.close()
+    assert "C2" not in page.inner_text("#overrides") if page.locator("#overrides").count() else True
+    page.reload()
+    assert "Typed with care" not in page.inner_text("#review")  # nothing stored
     page.goto(f"{api.url}/courses/{COURSE}/dashboard")
     assert "C3 of submission" in page.inner_text("#recent-overrides")
     page.locator("#what-changed").screenshot(path=str(SHOTS / "dashboard-what-changed.png"))

@@ -17,6 +17,7 @@ import pytest
 from grader.core import clock
 from tests.grader.services.setup.test_assignments import checkpoint_sheet
 from tests.integration.helpers import SHOTS, measured_course_api
+from tests.integration.layout import assert_fits, pages_in_both_languages
 
 pytestmark = pytest.mark.integration
 COURSE = "l03-setup"
@@ -31,9 +32,9 @@ def api(tmp_path_factory):
         yield running
 
 
-def sign_in(browser, api, who: str):
+def sign_in(browser, api, who: str, *, locale: str = "en", width: int = 1280):
     """A new page signed in through the sign-in form (its own button: the header has the language buttons too)."""
-    page = browser.new_page(viewport={"width": 1280, "height": 900})
+    page = browser.new_page(viewport={"width": width, "height": 900}, locale=locale)
     page.goto(f"{api.url}/submissions")
     page.fill("#token", api.tokens[who])
     page.click("main button[type=submit]")
@@ -88,9 +89,19 @@ def test_an_instructor_sets_up_the_course_from_the_pages_and_the_api_shows_it(br
     page.fill("#f-max_attempts", "3")
     page.select_option("#f-counted_attempt", "best")
     page.select_option("#f-item_visibility-C3", "on_release")
+    # the per-item list holds the chosen part's items only: the checkpoints, not the 18 other items of the sheet
+    shown = [r for r in page.locator("#item-visibility tbody tr").all() if r.is_visible()]
+    assert [r.get_attribute("id") for r in shown] == [f"row-C{i}" for i in range(1, 9)]
+    page.select_option("#f-part", "sheet")
+    assert page.locator("#row-A2").is_visible() and page.locator("#row-C3").is_visible()
+    page.select_option("#f-part", "checkpoints")
+    assert not page.locator("#row-A2").is_visible()
     page.click("#save")
     page.wait_for_selector("#form-errors")
-    assert "due_at must be after open_at" in page.inner_text("#e-due_at")
+    # errors name fields by the form's labels, never by the API's names
+    assert "“Due” must be after “Opens”" in page.inner_text("#e-due_at")
+    assert page.inner_text("#form-errors li").startswith("Due: “Due” must be after “Opens”")
+    assert "due_at" not in page.inner_text("#form-errors") and "open_at" not in page.inner_text("#form-errors")
     assert page.input_value("#f-title") == "Week 3 checkpoints"
     assert page.input_value("#f-item_visibility-C3") == "on_release"
     assert prof.assignments(COURSE) == []
@@ -152,14 +163,37 @@ def test_an_instructor_sets_up_the_course_from_the_pages_and_the_api_shows_it(br
                      json={"sheet": checkpoint_sheet("bob"), "assignment_id": aid})
     assert bob.status_code == 409 and "(its hard close)" in bob.json()["errors"][0]["rule"]
 
+    # Submissions outside assignments: refused from the set-up page, recorded like the other settings.
+    page.goto(f"{api.url}/courses/{COURSE}/setup")
+    assert page.is_checked("#f-free") and page.inner_text("#free-submissions-state").startswith("Allowed")
+    page.uncheck("#f-free")
+    page.click("#free-submissions button[type=submit]")
+    page.wait_for_selector("#free-submissions-state")
+    assert page.inner_text("#free-submissions-state").startswith("Refused") and not page.is_checked("#f-free")
+    assert prof.course(COURSE)["free_submissions"] is False
+
     # Every change, with who, on the set-up page.
     page.goto(f"{api.url}/courses/{COURSE}/setup")
     changes = page.inner_text("#changes")
     for what in ("time zone UTC → Europe/Berlin", f"created assignment {aid}", "roster imported: 2 new",
-                 "extension for s1001", f"released assignment {aid}"):
+                 "extension for s1001", f"released assignment {aid}", "submissions outside assignments allowed → "
+                 "refused"):
         assert what in changes, what
     assert "prof" in changes
+    assert_fits(page, "set-up page at 1280 px")  # it was 1376 px wide with its assignments' dates on one line
     shot(page, "setup-page.png")
+    # The API lists what the page shows: the roster, the assignment's extensions and the change log (staff only).
+    roster_rows = httpx.get(f"{api.url}/v1/courses/{COURSE}/roster", headers=prof_http).json()
+    assert {"student": "s1001", "name": "Ada Lovelace", "email": "ada@example.edu"} in roster_rows
+    (ext,) = httpx.get(f"{api.url}/v1/assignments/{aid}/extensions", headers=prof_http).json()
+    assert (ext["student"], ext["granted_by"], ext["due_at"]) == ("s1001", "prof", utc(ext_due))
+    logged = httpx.get(f"{api.url}/v1/courses/{COURSE}/changes", headers=prof_http).json()
+    assert logged[0]["kind"] == "course_settings" and logged[0]["detail"] == {"free_submissions": [True, False]}
+    assert len(logged) >= 6 and {c["by"] for c in logged} == {"prof"}
+    for url, name, ready in ((f"{api.url}/courses/{COURSE}/setup", "setup-page", "#changes"),
+                             (f"{api.url}/assignments/{aid}/edit", "setup-assignment-form", "#assignment-form")):
+        pages_in_both_languages(browser, lambda b, **kw: sign_in(b, api, "prof", **kw), url, SHOTS, name,
+                                ready=ready)
     page.goto(f"{api.url}/assignments/{aid}/edit")
     page.wait_for_selector("#assignment-form")
     assert page.input_value("#f-due_at") == due

@@ -19,6 +19,7 @@ from grader.core.models import CaseRun, Course, RubricVersion, User
 from tests.factories import reference_sheet
 from tests.grader.services.rubrics.test_tolerance_review import precision_twin
 from tests.integration.helpers import submit_and_wait
+from tests.integration.layout import assert_fits, pages_in_both_languages
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 COURSE = "review-class"
@@ -35,6 +36,7 @@ def review_class(stack):
 
     with Session(stack.engine) as session:
         course = accounts.get_or_create_course(session=session, name=COURSE)
+        course.timezone = "Asia/Kolkata"  # a half-hour zone: every time on these pages is in it, none in UTC
         for name, role in (("pia", "student"), ("ivan", "instructor"), ("aude", "auditor")):
             user = accounts.get_or_create_user(session=session, course=course, name=name, role=role)
             stack.tokens[name] = accounts.create_token(session=session, user=user)
@@ -58,10 +60,10 @@ def _precision_twin(stack, submission_id: int) -> int:
         return entries[0].id
 
 
-def _signed_in(browser, stack, who: str, *, width: int = 1280):
+def _signed_in(browser, stack, who: str, *, width: int = 1280, locale: str = "en"):
     """A page signed in through the sign-in form, waiting until the sign-in has landed (a goto right after the click
     would abort its POST); the sign-in form's own button, as the header may hold other forms (the language switch)."""
-    page = browser.new_page(viewport={"width": width, "height": 900})
+    page = browser.new_page(viewport={"width": width, "height": 900}, locale=locale)
     page.goto(f"{stack.url}/submissions")
     assert page.url.startswith(f"{stack.url}/sign-in")
     page.fill("#token", stack.tokens[who])
@@ -80,9 +82,9 @@ def _hash(stack, version: str) -> str:
 def test_an_instructor_reviews_signs_off_drafts_and_regrades_in_the_browser(browser, stack, review_class):
     SHOTS.mkdir(parents=True, exist_ok=True)
     entry = _precision_twin(stack, review_class)
-    page = _signed_in(browser, stack, "ivan", width=1400)
+    page = _signed_in(browser, stack, "ivan")
     page.goto(f"{stack.url}/courses/{COURSE}/rubrics")
-    assert page.inner_text("#signoff-2").strip() == "pending"
+    assert page.inner_text("#signoff-2").strip() == "not signed off yet"
     page.click("#review-link-2")
     page.wait_for_selector("#tolerances")
     assert "Instructor sign-off pending." in page.inner_text("#signoff-state")
@@ -91,6 +93,12 @@ def test_an_instructor_reviews_signs_off_drafts_and_regrades_in_the_browser(brow
     assert "FLAGGED" in page.inner_text("#tol-n1_n4_max_dz")
     assert "FLAGGED" not in page.inner_text("#tol-pair_friction_abs")
     assert page.inner_text("#flag-summary").startswith("2 tolerance(s) flagged")
+    # the source names what its date is: when this service first stored a shipped version, not a publication
+    assert re.fullmatch(r"shipped with the service; first stored by this service \d{4}-\d\d-\d\d \d\d:\d\d IST "
+                        r"\(not when it was written\)", page.inner_text("#version-source")), \
+        page.inner_text("#version-source")
+    assert "sign-off pending" in page.inner_text("#review-record")  # the shipped record says so while it is true
+    assert_fits(page, "tolerance review at 1280 px")  # no horizontal scroll, no word broken inside a cell
     page.screenshot(path=str(SHOTS / "review-flagged.png"), full_page=True)
     hash_before = _hash(stack, "2")
 
@@ -103,12 +111,22 @@ def test_an_instructor_reviews_signs_off_drafts_and_regrades_in_the_browser(brow
     page.fill("#signoff-note", "Flags read: the 64-bit twin is a crafted test pair")
     page.click("#signoff-form button[type=submit]")
     page.wait_for_selector("#signoff-state.info")
-    assert re.search(r"by ivan, \d{4}-\d\d-\d\d \d\d:\d\d UTC: Flags read", page.inner_text("#signoff-state"))
+    # in the course's zone, as the set-up page promises
+    assert re.search(r"by ivan, \d{4}-\d\d-\d\d \d\d:\d\d IST: Flags read", page.inner_text("#signoff-state"))
     assert page.locator("#signoff-form").count() == 0  # signed once
+    # one sign-off status: the shipped record's "instructor sign-off pending" is gone once it is signed off
+    assert "sign-off pending" not in page.inner_text("main").lower()
+    assert page.inner_text("#review-record").startswith("rubric v2 author (measured-items revision), ")
     page.screenshot(path=str(SHOTS / "review-signed-off.png"), full_page=True)
+    pages_in_both_languages(browser, lambda b, **kw: _signed_in(b, stack, "ivan", **kw),
+                            f"{stack.url}/courses/{COURSE}/rubrics/L03/2", SHOTS, "tolerance-review",
+                            ready="#tolerances")
+    pages_in_both_languages(browser, lambda b, **kw: _signed_in(b, stack, "ivan", **kw),
+                            f"{stack.url}/courses/{COURSE}/rubrics", SHOTS, "rubrics", ready="#versions")
     assert _hash(stack, "2") == hash_before  # signing never changes the version
     page.goto(f"{stack.url}/courses/{COURSE}/rubrics")
-    assert page.inner_text("#signoff-2").startswith("signed off by ivan")
+    assert re.match(r"signed off by ivan, \d{4}-\d\d-\d\d \d\d:\d\d IST", page.inner_text("#signoff-2"))
+    assert "pending" not in page.inner_text("#version-2")
     page.screenshot(path=str(SHOTS / "rubrics-list.png"), full_page=True)
 
     # the auditor reads the review but neither signs nor drafts
@@ -144,5 +162,5 @@ def test_an_instructor_reviews_signs_off_drafts_and_regrades_in_the_browser(brow
     page.click("#commit button[type=submit]")
     page.wait_for_selector("#regrades")
     assert page.inner_text("#current-version") == "v3"
-    assert page.inner_text("#signoff-3").strip() == "pending"  # a new version's sign-off starts pending
+    assert page.inner_text("#signoff-3").strip() == "not signed off yet"  # a new version's sign-off starts pending
     page.screenshot(path=str(SHOTS / "rubrics-after-commit.png"), full_page=True)

@@ -18,7 +18,7 @@ from grader.pages.errors import not_found
 from grader.pages.templates import TEMPLATES
 from grader.services.errors import Conflict, DomainError, Invalid, NotFound
 from grader.services.rubrics.regrade import commit_regrade, preview_regrade, regrade_records, rubric_versions
-from grader.services.rubrics.tolerance_review import signoff_states
+from grader.services.rubrics.tolerance_review import review_record, signoff_states
 from rubric.governance import rubric_changes
 
 router = APIRouter(include_in_schema=False)
@@ -30,10 +30,13 @@ def rubrics_page(request: Request, row: StaffCourse, session: SessionDep, user: 
         return not_found(request, user, f"rubrics of course {row.name} for lesson {lesson}")
     versions = rubric_versions(session, course=row, lesson=lesson)
     regrades = regrade_records(session, course=row, lesson=lesson)
+    signed = signoff_states(session, course=row, rows=versions)
     return TEMPLATES.TemplateResponse(request, "rubrics/rubrics.html", {
         "user": user, "course": row.name, "lesson": lesson, "versions": versions, "regrades": regrades,
         "current": store.course_version(session, row.id, lesson),
-        "signoffs": signoff_states(session, course=row, rows=versions)})
+        "signoffs": signed, "reviewers": {v.version: review_record(v.content["review"]["reviewer"],
+                                                                  signed_off=bool(signed[v.version]))
+                                          for v in versions}})
 
 
 def _refused(request: Request, user, course: str, exc: DomainError) -> HTMLResponse:

@@ -9,6 +9,7 @@ was typed and each error beside its field. Times are typed and shown in the cour
 
 from __future__ import annotations
 
+import re
 from datetime import UTC, datetime
 from typing import Annotated
 from zoneinfo import available_timezones
@@ -139,6 +140,20 @@ NEW_VALUES = {"lesson": "L03", "part": AssignmentParts.SHEET, "counted_attempt":
               "visibility": Visibility.IMMEDIATE, "late_penalty_per_day": "0"}
 
 
+# The form's labels for the API's field names a rule may mention ("due_at must be after open_at").
+FORM_WORDS = {"hard_close_at": "“Hard close”", "due_at": "“Due”", "open_at": "“Opens”",
+              "late_penalty_per_day": "“Late penalty per day late”", "late_penalty_cap": "“Late penalty cap”",
+              "max_attempts": "“Attempts allowed”", "max_per_hour": "“Submissions in any 60 minutes”",
+              "counted_attempt": "“The attempt that counts”", "item_visibility": "“Items shown otherwise”"}
+_FORM_WORD = re.compile(r"\b(" + "|".join(FORM_WORDS) + r")\b")
+
+
+def in_form_words(errors: list[dict[str, str]] | None) -> list[dict[str, str]]:
+    """Each error's rule naming fields by the form's labels, not by the API's names (the field stays the API's: the
+    page puts the error beside that field and names it by its label)."""
+    return [e | {"rule": _FORM_WORD.sub(lambda m: FORM_WORDS[m[1]], e["rule"])} for e in errors or []]
+
+
 def by_field(errors: list[dict[str, str]] | None) -> dict[str, list[str]]:
     out: dict[str, list[str]] = {}
     for e in errors or []:
@@ -150,6 +165,7 @@ def form_page(request: Request, session, user, course: Course, *, assignment: As
               posted: dict[str, str], errors: list[dict[str, str]] | None = None,
               status_code: int = status.HTTP_200_OK) -> HTMLResponse:
     submitted = logic.submission_count(session=session, assignment=assignment) if assignment else 0
+    errors = in_form_words(errors)
     return TEMPLATES.TemplateResponse(request, "setup/assignment_form.html", {
         "user": user, "course": course, "a": assignment, "v": posted, "errors": errors or [],
         "field_errors": by_field(errors), "items": all_items(), "parts": values(AssignmentParts),
@@ -190,6 +206,14 @@ def set_timezone(request: Request, row: InstructorCourse, session: SessionDep, u
         return setup_page(request, session, user, row, section="timezone", errors=exc.errors,
                           posted={"timezone": timezone}, status_code=status.HTTP_422_UNPROCESSABLE_CONTENT)
     return RedirectResponse(f"/courses/{row.name}/setup#timezone", status_code=status.HTTP_303_SEE_OTHER)
+
+
+@router.post("/courses/{course}/setup/free-submissions", response_class=HTMLResponse)
+def set_free_submissions(row: InstructorCourse, session: SessionDep, user: SignedIn,
+                         free_submissions: str = Form("")):
+    """Whether the course's students may submit outside an assignment (an unchecked box sends nothing: refused)."""
+    courses.update_settings(session=session, course=row, by=user, free_submissions=bool(free_submissions))
+    return RedirectResponse(f"/courses/{row.name}/setup#free-submissions", status_code=status.HTTP_303_SEE_OTHER)
 
 
 def roster_text(upload: UploadFile | None) -> str:

@@ -68,22 +68,31 @@ def report_page(request: Request, submission_id: int, session: SessionDep, user:
         return not_found(request, user, f"submission {submission_id}")
     # the report (the largest column) loads only if the page is built: a 304 never reads it
     grade = grade_view(session=session, submission=submission, user=user, report=False)
-    hidden = bool(grade.hidden)
     attempt = _attempts(session, [submission], user).get(submission.id)
 
     def build():
-        view = report_view(submission, grade if grade.shown else None, grade.withheld_runs)
-        return TEMPLATES.TemplateResponse(request, "submissions/report.html", {
-            "user": user, "view": view, "part_titles": PART_TITLES, "attempt": attempt,
-            "history": [] if hidden else grade_history(session, submission.id),
-            "charts": _charts(submission, grade.withheld_runs),
-            "series_url": f"/submissions/{submission.id}/series.json"})
+        return report_response(request, session, user, submission, grade=grade, attempt=attempt)
 
     # A complete report answers 304 to a browser that holds it, and is rendered once per validator (grader.web.etag).
     tag = etag.etag_of("report-page", etag.report_state(session, submission, user, grade), request_locale(request),
                        {k: v for k, v in (attempt or {}).items() if k != "assignment"}, str(request.url)) \
         if etag.complete(submission, grade) else None
     return etag.conditional(request, tag, build, cache_key="report-page")
+
+
+def report_response(request: Request, session, user, submission: Submission, *, grade=None, attempt=None,
+                    extra: dict | None = None, status_code: int = 200) -> HTMLResponse:
+    """The report page as `user` reads it; `extra` is context a form's refusal adds (the override form shown again
+    with its error and what was typed, grader.pages.submissions.review_requests)."""
+    if grade is None:
+        grade = grade_view(session=session, submission=submission, user=user, report=False)
+        attempt = _attempts(session, [submission], user).get(submission.id)
+    view = report_view(submission, grade if grade.shown else None, grade.withheld_runs)
+    return TEMPLATES.TemplateResponse(request, "submissions/report.html", {
+        "user": user, "view": view, "part_titles": PART_TITLES, "attempt": attempt,
+        "history": [] if grade.hidden else grade_history(session, submission.id),
+        "charts": _charts(submission, grade.withheld_runs),
+        "series_url": f"/submissions/{submission.id}/series.json"} | (extra or {}), status_code=status_code)
 
 
 def _charts(submission: Submission, withheld: dict[str, str]) -> list:

@@ -2,8 +2,9 @@
 and the report page's two forms: a student's review request and an instructor's override of one item.
 
 Every form here is a POST under the origin check (grader.pages.csrf, on the whole page router). A refusal the
-person can mend (a missing comment, a score outside the item's points) names the field and the rule: on the queue
-page beside the form, and from the report page's forms on the error page (grader.pages.errors).
+person can mend (a missing comment, a score outside the item's points) names the field and the rule beside the form:
+on the queue page, and on the report page for its override form (what was typed kept); the review request form's
+refusals are the error page (grader.pages.errors).
 """
 
 from __future__ import annotations
@@ -15,9 +16,12 @@ from fastapi.responses import HTMLResponse, RedirectResponse
 
 from grader.web.deps import SessionDep
 from grader.web.errors import status_of
+from grader.core.grades import current_grade
 from grader.core.models import Course
 from grader.pages.auth import InstructorCourse, SignedIn, StaffCourse
+from grader.pages.submissions.report import report_response
 from grader.pages.templates import TEMPLATES
+from grader.pages.views import VERDICT_LABEL
 from grader.services.identity import access
 from grader.services.submissions import overrides, review_requests
 from grader.services.errors import Conflict, Invalid
@@ -41,12 +45,29 @@ def _score(text: str, *, required: bool) -> float | None:
     return value
 
 
+def _items_now(session, requests) -> dict[int, dict]:
+    """Request id -> its item as the submission's current grade has it (score, points, measured verdict, and whether
+    an instructor set the score): staff read every item, withheld or not, so the queue shows each beside its request."""
+    grades: dict[int, dict] = {}
+    out = {}
+    for r in requests:
+        if r.submission_id not in grades:
+            grade = current_grade(session, r.submission_id)
+            grades[r.submission_id] = {i["id"]: i for i in (grade.report if grade else {}).get("items", [])}
+        item = grades[r.submission_id].get(r.item_id)
+        if item is not None:
+            out[r.id] = {"score": item.get("score"), "points": item.get("points"), "verdict": item.get("verdict"),
+                         "verdict_label": VERDICT_LABEL.get(item.get("verdict"), item.get("verdict")),
+                         "overridden": bool(item.get("override"))}
+    return out
+
+
 def _queue(request: Request, session, user, course: Course, *, answered: int | None = None, failed: int | None = None,
            error: Invalid | Conflict | None = None, status_code: int = 200) -> HTMLResponse:
+    waiting = review_requests.course_requests(session=session, course_id=course.id, state="open")
+    done = review_requests.course_requests(session=session, course_id=course.id, state="answered")
     return TEMPLATES.TemplateResponse(request, "submissions/review_requests.html", {
-        "user": user, "course": course.name,
-        "open": review_requests.course_requests(session=session, course_id=course.id, state="open"),
-        "answered": review_requests.course_requests(session=session, course_id=course.id, state="answered"),
+        "user": user, "course": course.name, "open": waiting, "answered": done, "now": _items_now(session, waiting + done),
         "just_answered": answered, "failed": failed, "error": error}, status_code=status_code)
 
 
@@ -71,12 +92,18 @@ def answer_form(request: Request, row: InstructorCourse, request_id: int, sessio
 
 
 @router.post("/submissions/{submission_id}/overrides")
-def override_form(submission_id: int, session: SessionDep, user: SignedIn, item_id: str = Form(""),
+def override_form(request: Request, submission_id: int, session: SessionDep, user: SignedIn, item_id: str = Form(""),
                   score: str = Form(""), comment: str = Form("")):
-    """The report page's override form (instructors of the course; anyone else gets the not-found page)."""
+    """The report page's override form (instructors of the course; anyone else gets the not-found page). A refusal
+    the instructor can mend is the report page again, the error beside the form and what was typed kept."""
     submission = access.readable_submission(session=session, user=user, submission_id=submission_id)
-    overrides.set_override(session=session, submission=submission, user=user, item_id=item_id,
-                           score=_score(score, required=True), comment=comment)
+    try:
+        overrides.set_override(session=session, submission=submission, user=user, item_id=item_id,
+                               score=_score(score, required=True), comment=comment)
+    except (Invalid, Conflict) as refused:  # nothing was stored
+        session.rollback()
+        return report_response(request, session, user, submission, status_code=status_of(refused), extra={
+            "override_error": refused, "override_typed": {"item_id": item_id, "score": score, "comment": comment}})
     return RedirectResponse(f"/submissions/{submission_id}#override-{item_id}", status_code=status.HTTP_303_SEE_OTHER)
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import logging
 import statistics
 from collections import Counter
-from datetime import datetime
+from datetime import UTC, datetime
 from typing import Any, Literal
 
 from pydantic import BaseModel
@@ -33,7 +33,9 @@ from grader.services.submissions.overrides import OverridePublic
 from grader.services.submissions.review_requests import ReviewRequestPublic
 from grader.services.sending import Sender
 from grader.services.identity import access
+from grader.core.timezones import zone
 from rubric import class_analysis
+from rubric.analysis import ScoreBin, score_distribution
 from rubric import sheet as sheet_models
 from rubric.scoring import GradeReport
 
@@ -125,6 +127,20 @@ class AssignmentGrades(BaseModel):
     grades: list[CountedGradePublic]
 
 
+class ScoreGroup(BaseModel):
+    """One score distribution of like with like: an assignment's counted scores (one per student), or the latest
+    graded submission per student outside assignments (sheets only: they are all scored out of one maximum)."""
+
+    assignment_id: int | None
+    title: str
+    part: str
+    n: int
+    max_total: float
+    mean: float
+    median: float
+    distribution: list[ScoreBin]
+
+
 class Dashboard(BaseModel):
     course: str
     lesson: str | None
@@ -137,6 +153,7 @@ class Dashboard(BaseModel):
     predictions: list[PredictionPlot]
     backends: BackendSpread
     assignments: list[AssignmentGrades] = []
+    score_groups: list[ScoreGroup] = []  # per assignment and for submissions outside one: never mixed maxima
     open_reviews: list[ReviewRequestPublic] = []  # oldest first: the queue at /courses/COURSE/reviews
     recent_overrides: list[OverridePublic] = []  # newest first, the ones in force
 
@@ -348,6 +365,10 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
         latest[s.student_id] = s
         attempts[s.student_id] += 1
     graded = graded_reports(session, course)
+    latest_free: dict[int, Grade] = {}  # per student, the latest graded submission outside assignments
+    for s in submissions:
+        if s.assignment_id is None and s.id in grades:
+            latest_free[s.student_id] = grades[s.id]
     problems = []
     for s in submissions:
         for run in s.case_runs:
@@ -364,7 +385,7 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
         lesson=submissions[-1].lesson if submissions else None,
         rubric_versions=sorted({report.rubric_version for _, report in graded}),
         submissions_by_state=dict(Counter(s.status for s in submissions)),
-        submissions_per_day=dict(sorted(Counter(f"{s.created_at:%Y-%m-%d}" for s in submissions).items())),
+        submissions_per_day=per_day(submissions, course.timezone),
         problems=problems,
         roster=[RosterRow(student=s.student.name, submission_id=s.id, status=s.status, submitted_at=s.created_at,
                           attempts=attempts[student], total=grades[s.id].total if s.id in grades else None,
@@ -373,7 +394,8 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
         analysis=class_analysis([report for _, report in graded]).model_dump(mode="json"),
         predictions=predictions(course, graded),
         backends=backend_spread(session, course),
-        assignments=assignment_grades(session, course),
+        assignments=(by_assignment := assignment_grades(session, course)),
+        score_groups=score_groups(by_assignment, list(latest_free.values())),
         open_reviews=[review_requests.public(r) for r in
                       review_requests.course_requests(session=session, course_id=course.id, state="open")],
         recent_overrides=[override_store.public(session, o)
@@ -391,3 +413,32 @@ def assignment_grades(session: Session, course: Course) -> list[AssignmentGrades
                              grades=[counted_public(c) for c in counted_grades(session=session, assignment=a)])
             for a in rows]
 
+
+
+def per_day(submissions: list[Submission], timezone: str) -> dict[str, int]:
+    """Submissions per calendar day in the course's zone (the day a student saw on their clock), oldest first."""
+    tz = zone(timezone)
+    return dict(sorted(Counter(f"{s.created_at.replace(tzinfo=UTC).astimezone(tz):%Y-%m-%d}"
+                               for s in submissions).items()))
+
+
+def _group(assignment_id: int | None, title: str, part: str, scores: list[float], max_total: float) -> ScoreGroup:
+    return ScoreGroup(assignment_id=assignment_id, title=title, part=part, n=len(scores), max_total=max_total,
+                      mean=statistics.fmean(scores), median=statistics.median(scores),
+                      distribution=score_distribution(scores, max_total))
+
+
+def score_groups(assignments: list[AssignmentGrades], free: list[Grade]) -> list[ScoreGroup]:
+    """A distribution per assignment (its counted scores) and one per maximum of the latest graded submission of each
+    student outside assignments: a checkpoint attempt out of 8 is never a bin of a sheet out of 30."""
+    out = []
+    for a in assignments:
+        if a.grades:
+            out.append(_group(a.id, a.title, a.part, [g.counted_score for g in a.grades],
+                              max(g.max_score for g in a.grades)))
+    by_max: dict[float, list[float]] = {}
+    for grade in free:
+        by_max.setdefault(grade.max_total, []).append(grade.total)
+    for max_total, totals in sorted(by_max.items()):
+        out.append(_group(None, "", "", totals, max_total))
+    return out

@@ -44,6 +44,18 @@ class SignoffRecord(BaseModel):
     note: str
 
 
+PENDING_NOTE = re.compile(r"\s*\(\s*instructor sign-off pending\s*\)|;\s*instructor sign-off pending\s*(?=\))",
+                          re.IGNORECASE)
+
+
+def review_record(reviewer: str, *, signed_off: bool) -> str:
+    """The version's own review record as a page shows it: once the course has signed it off, the shipped record's
+    "instructor sign-off pending" is dropped, so the page states one sign-off status (the course's own)."""
+    if not signed_off:
+        return reviewer
+    return PENDING_NOTE.sub("", reviewer).strip() or reviewer
+
+
 class VersionReview(BaseModel):
     """Everything the review page shows of one version, for one course."""
 
@@ -53,8 +65,8 @@ class VersionReview(BaseModel):
     content_hash: str
     source: str
     published_by: str | None
-    published_at: UtcDateTime
-    reviewer: str
+    published_at: UtcDateTime  # when this service first stored the version (shipped) or it was published here
+    reviewer: str  # the version's review record, without "sign-off pending" once the course signed it off
     review_date: str
     review_notes: str
     tolerances: list[ToleranceReview]
@@ -150,12 +162,14 @@ def version_review(session: Session, *, course: Course, lesson: str, version: st
     rubric: Rubric = store.get_version(session, lesson, version, course_id=course.id)
     stored = _stored(session, course, lesson)
     differences, entries = _differences(session, course, lesson)
+    done = signoffs(session, course, row)
     review = VersionReview(
         course=course.name, lesson=lesson, version=version, content_hash=row.content_hash, source=row.source,
         published_by=row.published_by.name if row.published_by else None, published_at=row.published_at,
-        reviewer=rubric.review.reviewer, review_date=rubric.review.review_date.isoformat(),
+        reviewer=review_record(rubric.review.reviewer, signed_off=bool(done)),
+        review_date=rubric.review.review_date.isoformat(),
         review_notes=rubric.review.notes, tolerances=review_rubric(rubric, stored, differences),
-        signoffs=signoffs(session, course, row), measurements=len({v.case_run_id for v in stored}),
+        signoffs=done, measurements=len({v.case_run_id for v in stored}),
         audit_entries=entries)
     session.commit()
     return review

@@ -356,6 +356,12 @@ def extension_of(*, session: Session, assignment: Assignment, student: User) -> 
                                                   Extension.student_id == student.id))
 
 
+def extensions(*, session: Session, assignment: Assignment) -> list[Extension]:
+    """The assignment's extensions, by student name."""
+    rows = session.scalars(select(Extension).where(Extension.assignment_id == assignment.id))
+    return sorted(rows, key=lambda e: e.student.name)
+
+
 def grant_extension(*, session: Session, assignment: Assignment, student_name: str, due_at: datetime,
                     hard_close_at: datetime, user: User) -> Extension:
     """Give one student their own due date and hard close (replaces an earlier one); Invalid for an unknown student.

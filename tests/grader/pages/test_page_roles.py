@@ -136,6 +136,8 @@ ROUTES: dict[str, Route] = {
         None)),
     "/courses/{course}/setup/timezone": Route(INSTRUCTOR, lambda w: (
         "/courses/l03/setup/timezone", {"timezone": "Europe/Berlin"}, None)),
+    "/courses/{course}/setup/free-submissions": Route(INSTRUCTOR, lambda w: (
+        "/courses/l03/setup/free-submissions", {"other": ""}, None)),  # unchecked: refused
     "/courses/{course}/setup/roster": Route(INSTRUCTOR, lambda w: (
         "/courses/l03/setup/roster", {}, {"csv": ("roster.csv", ROSTER.encode(), "text/csv")})),
     "/courses/{course}/setup/students/{student}/sign-in-link": Route(INSTRUCTOR, lambda w: (

@@ -14,6 +14,7 @@ from sqlalchemy import func, select
 
 from grader.core.db import new_session
 from grader.core.models import Assignment, CourseChange, Extension, User
+from grader.pages.setup.courses import in_form_words
 from tests.grader.services.setup.test_assignments import ROSTER, at, create, submit
 
 # The forms below name days of December 2026 and January 2027: the clock stands before them on any calendar day.
@@ -120,7 +121,7 @@ def test_an_unknown_zone_is_refused_with_the_apis_message_beside_the_field_nothi
     response = page_post(api, "/courses/l03/setup/timezone", {"timezone": "Mars/Olympus"})
     assert response.status_code == 422
     errors = re.search(r'id="timezone-errors">(.*?)</div>', response.text, re.S).group(1)
-    assert "<code>timezone</code>" in errors and api_rule.replace("'", "&#39;") in errors
+    assert "IANA time zone name: " in errors and api_rule.replace("'", "&#39;") in errors  # the field by its label
     assert 'value="Mars/Olympus"' in response.text and 'aria-invalid="true"' in response.text  # kept, marked
     assert api.client.get("/v1/courses/l03", headers=api.as_("prof")).json()["timezone"] == "UTC"
     assert changes() == []
@@ -182,8 +183,11 @@ def test_each_bad_field_comes_back_beside_its_field_with_the_apis_message_nothin
                 "due_at": "2026-12-08T09:00:00Z", "hard_close_at": "2026-12-10T17:30:00Z", **api_body}
         refused = api.client.post("/v1/courses/l03/assignments", json=body, headers=api.as_("prof"))
         assert refused.status_code == 422
-        rules = [e["rule"] for e in refused.json()["errors"] if e["field"] == field]
+        # the API's message, naming fields by the form's labels ("due_at must be after open_at" reads
+        # "“Due” must be after “Opens”")
+        rules = [e["rule"] for e in in_form_words(refused.json()["errors"]) if e["field"] == field]
         assert rules and all(rule in shown for rule in rules), (shown, rules)
+        assert "_at" not in shown
     else:
         assert "Europe/Berlin" in shown
     assert f'href="#f-{field.replace(".", "-")}"' in response.text  # the summary at the top links the field
@@ -346,7 +350,7 @@ def test_release_and_extensions_from_the_assignment_page_are_what_the_api_shows(
 
 @pytest.mark.parametrize("data, field, rule", [
     ({"student": "bob", "due_at": "2027-01-05T12:00", "hard_close_at": "2027-01-04T12:00"}, "hard_close_at",
-     "hard_close_at must not be before due_at"),
+     "“Hard close” must not be before “Due”"),
     ({"student": "nobody", "due_at": "2027-01-05T12:00", "hard_close_at": "2027-01-06T12:00"}, "student",
      "no student &#39;nobody&#39; in this course"),
     ({"student": "", "due_at": "2027-01-05T12:00", "hard_close_at": "2027-01-06T12:00"}, "student",
@@ -358,7 +362,8 @@ def test_a_refused_extension_names_its_field_and_keeps_the_values(api, data, fie
     response = page_post(api, f"/assignments/{aid}/extensions", data)
     assert response.status_code == 422
     errors = re.search(r'id="extension-errors">(.*?)</div>', response.text, re.S).group(1)
-    assert f"<code>{field}</code>" in errors and rule in errors
+    label = {"student": "Student", "due_at": "Due", "hard_close_at": "Hard close"}[field]
+    assert f"<li>{label}: " in errors and rule in errors and "<code>" not in errors  # the field by its label
     assert f'value="{data["hard_close_at"]}"' in response.text
     assert count(Extension) == 0 and [c[0] for c in changes()] == ["assignment_created"]
 

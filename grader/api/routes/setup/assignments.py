@@ -1,4 +1,4 @@
-"""Assignments of a course: create and list (instructors), read one, grant a student an extension."""
+"""Assignments of a course: create and list (instructors), read one, grant a student an extension and list them."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, status
 from fastapi.responses import PlainTextResponse, Response
 
-from grader.web.deps import CurrentUser, InstructorCourse, InstructorUser, MemberCourse, RowId, SessionDep
+from grader.web.deps import CurrentUser, InstructorCourse, InstructorUser, MemberCourse, RowId, SessionDep, StaffUser
 from grader.services.setup import assignments as logic
 from grader.services.reports import exports
 from grader.api.responses import csv_ok, errors
@@ -78,6 +78,18 @@ def grant_extension(assignment: InstructorsAssignment, body: ExtensionCreate, se
                                 hard_close_at=body.hard_close_at, user=user)
     return ExtensionPublic(assignment_id=assignment.id, student=ext.student.name, due_at=ext.due_at,
                            hard_close_at=ext.hard_close_at, granted_by=user.name, granted_at=ext.granted_at)
+
+
+def extension_public(ext) -> ExtensionPublic:
+    return ExtensionPublic(assignment_id=ext.assignment_id, student=ext.student.name, due_at=ext.due_at,
+                           hard_close_at=ext.hard_close_at, granted_by=ext.granted_by.name, granted_at=ext.granted_at)
+
+
+@router.get("/assignments/{assignment_id}/extensions", response_model=list[ExtensionPublic], responses=errors(403))
+def list_extensions(assignment: ReadableAssignment, user: StaffUser, session: SessionDep):
+    """The assignment's extensions, by student: each student's own due date and hard close, who granted them and when
+    (instructors and auditors of the course)."""
+    return [extension_public(e) for e in logic.extensions(session=session, assignment=assignment)]
 
 
 @router.get("/assignments/{assignment_id}/grades", response_model=list[CountedGradePublic], responses=errors(403))

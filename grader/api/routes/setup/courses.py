@@ -1,5 +1,5 @@
-"""A course: its settings (time zone), and its submissions, class dashboard and roster (with students' sign-in
-links) for its staff."""
+"""A course: its settings (time zone), and its submissions, class dashboard, roster (with students' sign-in links) and
+record of changes for its staff."""
 
 from fastapi import APIRouter, Request
 
@@ -9,7 +9,8 @@ from grader.api.views import submission_public
 from grader.core.models import Course
 from grader.core.schemas import (CoursePublic, CourseUpdate, RosterEntry, RosterImport, SignInLinkPublic,
                             SubmissionPublic)
-from grader.services.setup import courses, roster
+from grader.api.schemas import CourseChangePublic, RosterStudentPublic
+from grader.services.setup import course_changes, courses, roster
 from grader.services.identity import sign_in_links
 from grader.services.submissions import submit as submissions
 from grader.services.reports.dashboard import Dashboard, course_dashboard
@@ -55,6 +56,23 @@ def dashboard(course: StaffCourse, session: SessionDep):
 def _link(request: Request, secret: str) -> str:
     """The page a student opens: this site's address, as the caller reached it."""
     return str(request.base_url).rstrip("/") + sign_in_links.PATH + secret
+
+
+@router.get("/{course}/roster", response_model=list[RosterStudentPublic])
+def list_roster(course: StaffCourse, session: SessionDep):
+    """The course's students by student id, with the name and email the roster gave (instructors and auditors of the
+    course; never a token or a sign-in link)."""
+    return [RosterStudentPublic(student=u.name, name=u.full_name, email=u.email)
+            for u in roster.students(session=session, course=course)]
+
+
+@router.get("/{course}/changes", response_model=list[CourseChangePublic])
+def list_changes(course: StaffCourse, session: SessionDep):
+    """The course's record of set-up changes, newest first (the newest 200): settings, assignments, releases,
+    extensions, roster imports and sign-in links, each with who made it and when (instructors and auditors)."""
+    return [CourseChangePublic(id=c.id, at=c.at, by=c.by.name, kind=c.kind, assignment_id=c.assignment_id,
+                               summary=c.summary, detail=c.detail or {})
+            for c in course_changes.of_course(session=session, course=course)]
 
 
 @router.post("/{course}/roster", response_model=list[RosterEntry], responses=errors(413))

@@ -35,8 +35,9 @@ def precision_twin(session, run, real, user) -> list:
 
 
 def _row(html: str, name: str) -> str:
+    """A tolerance's row, without the <wbr> its names carry after their separators."""
     start = html.index(f'id="tol-{name}"')
-    return html[start:html.index("</tr>", start)]
+    return html[start:html.index("</tr>", start)].replace("<wbr>", "")
 
 
 def _version_row(version: str = "2"):
@@ -130,12 +131,14 @@ def _signoff_flow(api):
     assert after == before and parse_rubric(after[2]).content_hash == before[1]  # content and hash untouched
     page = api.client.get(PAGE, headers=api.as_("prof")).text
     assert "Instructor sign-off pending." not in page
+    assert "sign-off pending" not in page.lower()  # one status: the shipped record's own note is dropped too
+    assert "rubric v2 author (measured-items revision), " in page
     dashboard = api.client.get("/courses/l03/dashboard", headers=api.as_("prof")).text
     assert "Rubric sign-offs pending (0)" in dashboard and "L03 v2: new submissions" not in dashboard
     assert re.search(r"by prof, \d{4}-\d\d-\d\d \d\d:\d\d UTC: checked against the audit log", page)
     listed = api.client.get("/courses/l03/rubrics", headers=api.as_("prof")).text
     assert re.search(r'id="signoff-2"><div>signed off by prof', listed)
-    assert re.search(r'id="signoff-1"><span class="verdict verdict-pending">pending', listed)
+    assert re.search(r'id="signoff-1"><span class="verdict verdict-pending">not signed off yet', listed)
     assert f'href="{PAGE}"' in listed
     # twice by the same instructor: refused, named; an auditor, a student, another site: refused, nothing stored
     again = api.client.post(f"{PAGE}/signoff", data={"note": ""}, headers=api.as_("prof"))
@@ -204,3 +207,15 @@ def test_a_drafted_version_needs_a_new_rationale_for_each_changed_tolerance_then
                                                             "rationale.proxy_resolution": reason + " again"},
                             headers=api.as_("prof"))
     assert clash.status_code == 409 and "published and immutable" in clash.text
+
+
+@pytest.mark.parametrize("reviewer, signed", [
+    ("rubric v2 author (measured-items revision; instructor sign-off pending)", "rubric v2 author (measured-items revision)"),
+    ("variant space author (instructor sign-off pending)", "variant space author"),
+    ("ivan", "ivan"),
+])
+def test_a_review_record_drops_its_pending_note_once_signed_off(reviewer, signed):
+    from grader.services.rubrics.tolerance_review import review_record
+
+    assert review_record(reviewer, signed_off=False) == reviewer
+    assert review_record(reviewer, signed_off=True) == signed

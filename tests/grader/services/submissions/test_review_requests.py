@@ -4,6 +4,8 @@ the answer on the report; answered requests are kept and listed; the dashboard s
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from tests.grader.services.setup.test_assignments import create, submit
@@ -137,9 +139,9 @@ def test_the_pages_ask_answer_and_show_the_answer_and_the_dashboard_lists_what_i
     assert queue.status_code == 200 and MESSAGE in queue.text
     rid = api.client.get("/v1/courses/l03/review-requests", headers=api.as_("prof")).json()[0]["id"]
     missing = api.client.post(f"/courses/l03/reviews/{rid}/answer", data={"answer": "", "score": ""})
-    assert missing.status_code == 422 and "<code>answer</code>: required" in missing.text
+    assert missing.status_code == 422 and "Your answer: required" in missing.text
     bad = api.client.post(f"/courses/l03/reviews/{rid}/answer", data={"answer": ANSWER, "score": "many"})
-    assert bad.status_code == 422 and "<code>score</code>: must be a number of points" in bad.text
+    assert bad.status_code == 422 and "New score: must be a number of points" in bad.text
     done = api.client.post(f"/courses/l03/reviews/{rid}/answer", data={"answer": ANSWER, "score": "0.5"},
                            follow_redirects=False)
     assert done.status_code == 303 and done.headers["location"].startswith(f"/courses/l03/reviews?answered={rid}")
@@ -150,8 +152,15 @@ def test_the_pages_ask_answer_and_show_the_answer_and_the_dashboard_lists_what_i
     # The instructor's override form on the report page.
     report = api.client.get(f"/submissions/{sid}").text
     assert 'id="override-form"' in report and 'id="review-request-form"' not in report
-    no_comment = api.client.post(f"/submissions/{sid}/overrides", data={"item_id": "C4", "score": "0", "comment": ""})
-    assert no_comment.status_code == 422 and "<code>comment</code>: required" in no_comment.text
+    no_comment = api.client.post(f"/submissions/{sid}/overrides", data={"item_id": "C4", "score": "0.5",
+                                                                       "comment": "  "})
+    # the report again, the error beside the form by its label, what was typed kept (the item chosen, the score)
+    assert no_comment.status_code == 422 and "Comment: required" in no_comment.text
+    assert 'id="override-errors"' in no_comment.text and 'value="0.5"' in no_comment.text
+    assert '<option value="C4" selected>' in no_comment.text and 'id="item-C4"' in no_comment.text
+    # the queue shows the item as it stands now
+    assert re.search(r'id="answered-\d+">.*?0\.5 of 1 points, <span class="verdict verdict-credit">credit</span>',
+                     api.client.get("/courses/l03/reviews").text, re.S)
     set_ = api.client.post(f"/submissions/{sid}/overrides", data={"item_id": "C4", "score": "0",
                                                                   "comment": "C4 reason missing."},
                            follow_redirects=False)
