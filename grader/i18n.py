@@ -162,8 +162,8 @@ PATTERNS: list[tuple[re.Pattern, str]] = [
     (re.compile(r"^(?P<p>[0-9.]+) of (?P<m>[0-9.]+) points pending \((?P<ids>[A-Z0-9, ]+)\): (?P<why>.+)$"),
      N_("%(p)s of %(m)s points pending (%(ids)s): %(why)s")),
     (re.compile(r"^shown after the due date, (?P<at>.+)$"), N_("shown after the due date, %(at)s")),
-    (re.compile(r"^shown once assignment (?P<id>[0-9]+) is released by an instructor$"),
-     N_("shown once assignment %(id)s is released by an instructor")),
+    (re.compile(r"^shown once “(?P<title>.+)” is released by an instructor$"),
+     N_("shown once “%(title)s” is released by an instructor")),
     (re.compile(r"^withheld: (?P<why>.+)$"), N_("withheld: %(why)s")),
     # rubric.one_factor (the one-factor verdict of a config, on the form and the report)
     (re.compile(r"^(?P<role>\S+) vs (?P<base>\S+): one factor \((?P<changed>.*?)\)"

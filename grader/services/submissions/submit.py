@@ -117,8 +117,9 @@ def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id
         session.flush()  # a concurrent submission that took this attempt number fails here, before any grading
     except IntegrityError:
         session.rollback()
-        raise Refused("assignment_id", f"attempt {attempt} of assignment {assignment.id} was just taken by another "
-                                       f"submission; submit again") from None
+        raise Refused("assignment_id", f"attempt {attempt} of “{assignment.title}” was just taken by another "
+                                       f"submission; submit again", reason="attempt_taken",
+                      facts={"assignment": assignment.title, "attempt": attempt}) from None
     to_grade = lifecycle.reuse_at_admission(session=session, submission=submission)
     to_send = [run for run in submission.case_runs if run.status == CaseRunState.QUEUED]  # the rest were reused
     _refuse_unserved_backends(to_send, sender)

@@ -73,7 +73,7 @@ def _withheld_by(session: Session, assignment: Assignment, student: User, now: d
             f"shown after the due date, {iso(due, assignment.course.timezone)}")
     if Visibility.ON_RELEASE in kinds:
         why[Visibility.ON_RELEASE] = None if assignment.released_at is not None else (
-            f"shown once assignment {assignment.id} is released by an instructor")
+            f"shown once “{assignment.title}” is released by an instructor")
     hidden = {i: why[visibility_of(assignment, i)] for i in ids}
     return {i: reason for i, reason in hidden.items() if reason}
 

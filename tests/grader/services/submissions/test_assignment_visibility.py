@@ -42,7 +42,7 @@ def test_a_withheld_item_is_hidden_everywhere_a_student_looks_then_shown_on_rele
     assert api.client.get(f"/v1/submissions/{sid}/grades", headers=api.as_("alice")).status_code == 409
     page = api.client.get(f"/submissions/{sid}", headers=api.as_("alice")).text
     assert 'verdict-pending">pending<' in page and "2 of 8 points pending" in page
-    assert "withheld: shown once assignment" in page
+    assert "withheld: shown once “" in page and "” is released by an instructor" in page
     results = api.client.get(f"/submissions/{sid}/results.json", headers=api.as_("alice")).json()
     assert {i["id"]: i["score"] for i in results["items"]}["C3"] is None and results["total"] == shown_total
     listing = api.client.get("/submissions", headers=api.as_("alice")).text

@@ -81,7 +81,7 @@ def test_a_withheld_item_cannot_be_asked_about(api):
     response = ask(api, sid)
     assert response.status_code == 422
     (error,) = response.json()["errors"]
-    assert error["field"] == "item_id" and error["rule"].startswith("item C3 is withheld: shown once assignment")
+    assert error["field"] == "item_id" and error["rule"].startswith("item C3 is withheld: shown once “")
     assert ask(api, sid, item_id="C4").status_code == 201  # a shown item of the same grade may be asked about
 
 

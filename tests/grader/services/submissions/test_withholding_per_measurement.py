@@ -132,7 +132,7 @@ def test_which_runs_decide_an_item_follows_its_kind_and_the_runs_its_rule_read()
                         _item("H6", "measured", []), _item("H5", "config", []),
                         _item("B1", "measured", ["friction-baseline"], verdict="not_measured")],
               "total": 7.0, "max_total": 7.0}
-    why = "shown once assignment 1 is released by an instructor"
+    why = "shown once “Week 1” is released by an instructor"
     assert set(withheld_runs(report, {"A2": why}, runs)) == {"N1", "N2"}
     assert withheld_runs(report, {"A5": why, "H5": why, "B1": why}, runs) == {}
     assert set(withheld_runs(report, {"H6": why}, runs)) == set(runs)
