@@ -10,6 +10,7 @@ regrade chose, else under the newest shipped version.
 from __future__ import annotations
 
 from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from rubric.governance import RubricGovernanceError, publish_version, rubric_changes
@@ -53,11 +54,27 @@ def sync_shipped(session: Session, lesson: str) -> list[RubricVersion]:
             publish_version(shipped, [_row_rubric(r) for r in rows.values()], used_versions(session, lesson))
             row.content, row.content_hash = shipped.model_dump(mode="json"), shipped.content_hash
             continue
-        rows[version] = RubricVersion(lesson=lesson, version=version, content_hash=shipped.content_hash,
-                                      content=shipped.model_dump(mode="json"), source="shipped")
-        session.add(rows[version])
+        rows[version] = _record_shipped(session, shipped)
     session.flush()
     return sorted(rows.values(), key=lambda r: version_key(r.version))
+
+
+def _record_shipped(session: Session, shipped) -> RubricVersion:
+    """The row of a shipped version seen for the first time. Two API processes taking their first submissions at
+    once both find it missing: the second insert meets the unique index (uq_rubric_versions_shipped) and reads the
+    first one's row instead of failing the submission."""
+    row = RubricVersion(lesson=shipped.lesson, version=shipped.version, content_hash=shipped.content_hash,
+                        content=shipped.model_dump(mode="json"), source="shipped")
+    try:
+        with session.begin_nested():
+            session.add(row)
+    except IntegrityError:
+        row = session.scalar(select(RubricVersion).where(RubricVersion.lesson == shipped.lesson,
+                                                         RubricVersion.version == shipped.version,
+                                                         RubricVersion.course_id.is_(None)))
+        if row is None or row.content_hash != shipped.content_hash:
+            raise
+    return row
 
 
 def course_versions(session: Session, course_id: int, lesson: str) -> list[RubricVersion]:

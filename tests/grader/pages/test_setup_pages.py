@@ -64,7 +64,8 @@ def test_the_setup_page_shows_zone_assignments_roster_registrations_and_changes(
     text = page.text
     assert 'value="UTC"' in text and 'href="/courses/l03/setup/assignments/new"' in text
     assert "Checkpoints week 3" in text and 'id="student-alice"' in text and 'id="student-bob"' in text
-    registration = re.search(r'<tr id="registration-\d+">(.*?)</tr>', text, re.S).group(1)
+    # long URLs carry <wbr> after their separators so that the table fits the page: the text read is without them
+    registration = re.search(r'<tr id="registration-\d+">(.*?)</tr>', text, re.S).group(1).replace("<wbr>", "")
     for shown in ("https://lms.example.edu", "tool-17", "d1", "d2", "https://lms.example.edu/auth",
                   "https://lms.example.edu/token", "https://lms.example.edu/jwks"):
         assert shown in registration
