@@ -115,12 +115,18 @@ def broker_kept_marker() -> bool | None:
         return None
 
 
-def held_tasks(*, timeout_s: float = 2.0) -> tuple[dict[str, set[tuple[int, int]]], dict[str, int]] | None:
+def grade_held(submission_id: int) -> tuple[str, int]:
+    """How `held_tasks` names a grade task for `submission_id` among a worker's held tasks."""
+    return ("grade", submission_id)
+
+
+def held_tasks(*, timeout_s: float = 2.0) -> tuple[dict[str, set[tuple]], dict[str, int]] | None:
     """Liveness as the broker sees it: per answering worker, the (case_run_id, delivery) of the case runs it is
-    running or holds prefetched; and the messages waiting per queue. None when not knowable (embedded broker, or the
-    broker unreachable): the reconciler then falls back to leases."""
+    running or holds prefetched, and `grade_held(submission_id)` for each grade task it holds; and the messages
+    waiting per queue. None when not knowable (embedded broker, or the broker unreachable): the reconciler then falls
+    back to leases."""
     # lazy: grader.main must not load Celery (test_the_api_never_imports_genesis_or_torch)
-    from worker.celery_app import RUN_TASK, app
+    from worker.celery_app import GRADE_TASK, RUN_TASK, app
 
     if str(app.conf.broker_url).startswith("filesystem"):
         return None
@@ -140,4 +146,6 @@ def held_tasks(*, timeout_s: float = 2.0) -> tuple[dict[str, set[tuple[int, int]
                 args = task.get("args") or []
                 if task.get("name") == RUN_TASK and len(args) == 2:
                     mine.add((int(args[0]), int(args[1])))
+                elif task.get("name") == GRADE_TASK and len(args) == 1:
+                    mine.add(grade_held(int(args[0])))
     return held, depths

@@ -26,6 +26,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.core import lifecycle
+from grader.dispatch import grade_held
 from grader.core.models import CaseRun, Event, Grade, Submission, utcnow
 from grader.services.lti import outbox as lti_outbox
 from grader.core.settings import settings
@@ -81,6 +82,26 @@ def orphaned(session: Session, now: datetime, liveness, broker_lost: bool = Fals
     return found
 
 
+def _lost_gradings(session: Session, query, now: datetime, liveness, broker_lost: bool) -> list[tuple[Submission, str]]:
+    """Submissions of `query` whose grade task is lost, with the reason (see find_and_requeue)."""
+    if broker_lost and liveness is not None:
+        return [(s, "the broker lost its messages") for s in session.scalars(query).all()]
+    lease = now - timedelta(seconds=settings.lease_s)
+    found = [(s, "lease expired") for s in session.scalars(query.where(Submission.grading_at < lease)).all()]
+    if liveness is not None:
+        # lazy: the queue's name is the worker's; Celery loads only where liveness was asked of it
+        from worker.celery_app import GRADE_QUEUE
+
+        held_by, depths = liveness
+        held = set().union(*held_by.values()) if held_by else set()
+        if depths.get(GRADE_QUEUE) == 0:
+            young = now - timedelta(seconds=LIVENESS_GRACE_S)
+            found += [(s, f"no live worker holds it and queue {GRADE_QUEUE} is empty") for s in session.scalars(
+                query.where(Submission.grading_at < young, Submission.grading_at >= lease)).all()
+                if grade_held(s.id) not in held]
+    return found
+
+
 def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=None,
                      broker_lost: bool = False) -> Resend:
     """Mark what must be re-sent (committed), and return it for the caller to enqueue.
@@ -102,23 +123,21 @@ def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=
             resend.were_running.add(run.id)
         lifecycle.requeue(session, run, reason)
         resend.case_runs.append((run.id, run.delivery, run.backend))
-    # A grade task lost with the broker is re-sent at once; grading happens exactly once whatever the duplicates.
-    grading_lease = 0 if broker_lost and liveness is not None else settings.lease_s
-    stuck = select(Submission).where(Submission.status == SubmissionState.GRADING,
-                                     Submission.grading_at < now - timedelta(seconds=grading_lease))
-    for submission in session.scalars(stuck).all():
-        submission.grading_at = utcnow()
-        session.add(Event(submission_id=submission.id, state=SubmissionState.GRADING, detail="grade task re-sent"))
-        resend.gradings.append(submission.id)
+    # A grade task is re-sent (grading happens exactly once whatever the duplicates) when it went with the broker, when
+    # no live worker holds it and the grade queue is empty (its worker was killed holding it: the message waits in
+    # the broker's unacknowledged set for the visibility timeout), or past its lease where liveness is not knowable.
     # grading_at is when the grade task was last sent: re-sending it starts the lease again.
+    awaiting = select(Submission).where(Submission.status == SubmissionState.GRADING)
     incomplete = (select(Submission).join(Grade, Grade.submission_id == Submission.id)
-                  .where(Submission.status == SubmissionState.GRADED, Grade.superseded_at.is_(None), Grade.completed_at.is_(None),
-                         Submission.grading_at < now - timedelta(seconds=grading_lease)))
-    for submission in session.scalars(incomplete).all():
-        submission.grading_at = utcnow()
-        session.add(Event(submission_id=submission.id, state="completing",
-                          detail="grade task re-sent: the grade is stored, its lab check is not"))
-        resend.gradings.append(submission.id)
+                  .where(Submission.status == SubmissionState.GRADED, Grade.superseded_at.is_(None),
+                         Grade.completed_at.is_(None)))
+    for query, state, detail in ((awaiting, SubmissionState.GRADING, "grade task re-sent"),
+                                 (incomplete, "completing",
+                                  "grade task re-sent: the grade is stored, its lab check is not")):
+        for submission, why in _lost_gradings(session, query, now, liveness, broker_lost):
+            submission.grading_at = utcnow()
+            session.add(Event(submission_id=submission.id, state=state, detail=f"{detail} ({why})"))
+            resend.gradings.append(submission.id)
     session.commit()
     # After the commit: what is re-sent above is marked before any LMS is waited on.
     resend.scores = lti_outbox.send_due(session=session, now=now)

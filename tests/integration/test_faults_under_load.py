@@ -133,10 +133,35 @@ def _running_again(db: Db, victim: CaseRun) -> Event:
     return db.wait(found, f"case run {victim.id} running again")
 
 
-def _wait_finished(db: Db, submission_ids: list[int]) -> None:
+def _wait_finished(db: Db, submission_ids: list[int], logs: Path) -> None:
     finished = select(func.count()).select_from(Submission).where(
         Submission.id.in_(submission_ids), Submission.status.in_(("graded", "failed")))
-    db.wait(lambda: db.read(lambda s: s.scalar(finished)) == len(submission_ids), "every submission finished")
+    try:
+        db.wait(lambda: db.read(lambda s: s.scalar(finished)) == len(submission_ids), "every submission finished")
+    except AssertionError as gave_up:
+        raise AssertionError(f"{gave_up}\n{_where_it_stands(db, submission_ids, logs)}") from None
+
+
+def _where_it_stands(db: Db, submission_ids: list[int], logs: Path) -> str:
+    """What a wait that gave up leaves to read: each unfinished submission, its runs and their last events, and the
+    last lines of every process's log (CI keeps nothing else of this test's servers)."""
+    def read(session):
+        subs = session.scalars(select(Submission).where(Submission.id.in_(submission_ids),
+                                                        Submission.status.not_in(("graded", "failed")))).all()
+        lines = []
+        for sub in subs:
+            lines.append(f"submission {sub.id}: {sub.status}")
+            for run in session.scalars(select(CaseRun).where(CaseRun.submission_id == sub.id)).all():
+                events = session.scalars(select(Event).where(Event.case_run_id == run.id).order_by(Event.id)).all()
+                trail = ", ".join(f"{e.state}@{e.at:%H:%M:%S}" for e in events[-6:])
+                lines.append(f"  run {run.id} {run.name}: {run.status} tries={run.tries} delivery={run.delivery} "
+                             f"worker={run.worker} lease_until={run.lease_until} [{trail}]")
+        return lines
+    lines = db.read(read)
+    for log in sorted(logs.glob("*.log")):
+        tail = log.read_text(errors="replace").splitlines()[-25:]
+        lines += [f"--- {log.name} (last lines)", *tail]
+    return "\n".join(lines)
 
 
 def _check_outcome(db: Db, submission_ids: list[int]) -> None:
@@ -296,7 +321,7 @@ def test_faults_under_load_on_redis_and_postgres(tmp_path, kernel_cache_filled):
         figures["kill 2: ready -> running again"] = _since(again.at, ready_at)
 
         assert len(submitted) >= 20
-        _wait_finished(db, submitted)
+        _wait_finished(db, submitted, logs)
         print(f"\nfaults under load, {len(submitted)} submissions:")
         for name, seconds in figures.items():
             print(f"  {name}: {seconds:.1f} s")
@@ -352,7 +377,7 @@ def test_faults_on_the_embedded_default(tmp_path, kernel_cache_filled):
                                         tmp_path / "worker-fresh.log", heartbeat=False)
         again = _running_again(db, victim)
         ready_to_running = _since(again.at, ready_at)
-        _wait_finished(db, submitted)
+        _wait_finished(db, submitted, tmp_path)
         print(f"\nembedded, {len(submitted)} submissions: worker killed {_since(again.at, killed_at):.1f} s before "
               f"its case ran again; ready -> running again {ready_to_running:.1f} s")
         _check_outcome(db, submitted)

@@ -164,3 +164,44 @@ def test_the_reconciler_reports_a_lost_broker_only_for_a_marker_it_had_left_and_
     # The first pass only leaves the marker; the loss at t=120 is seen by the watch at t=121 and acted on at once,
     # then passes are 15 s apart again.
     assert passes == [(100, False), (115, False), (121, True), (136, False)]
+
+
+def test_a_grade_task_no_live_worker_holds_is_resent_once_the_grade_queue_is_empty(api):
+    """A worker killed while it held a grade task (prefetched behind a case) leaves the message in the broker's
+    unacknowledged set until the visibility timeout (the lease, 17 min shipped): liveness re-sends it instead, once
+    it is older than the grace, no answering worker holds it and the grade queue is empty; a held one, a young one or
+    one that may still wait in a non-empty queue is left alone. The same holds for a graded sheet whose lab check is
+    still to come."""
+    from datetime import timedelta
+
+    from grader.core.db import new_session
+    from grader.core.models import CaseRun, Event, Grade, Submission, utcnow
+    from grader.dispatch import grade_held
+    from grader.reconcile import LIVENESS_GRACE_S, find_and_requeue
+
+    ids = [api.client.post("/v1/submissions", json={"sheet": reference_sheet()}, headers=api.as_("alice")).json()["id"]
+           for _ in range(2)]
+    old = utcnow() - timedelta(seconds=LIVENESS_GRACE_S + 5)
+    with new_session() as session:
+        session.execute(update(CaseRun).where(CaseRun.submission_id.in_(ids)).values(status="done"))
+        session.execute(update(Submission).where(Submission.id.in_(ids)).values(status="grading", grading_at=old))
+        session.commit()
+        held = {"cpu@host": {grade_held(ids[0]), grade_held(ids[1])}}
+        assert find_and_requeue(session=session, liveness=(held, {"cpu": 0, "grade": 0})).gradings == []
+        assert find_and_requeue(session=session, liveness=({"cpu@host": set()}, {"cpu": 0, "grade": 1})).gradings == []
+        resend = find_and_requeue(session=session, liveness=({"cpu@host": {grade_held(ids[1])}}, {"cpu": 0, "grade": 0}))
+        assert resend.gradings == [ids[0]]
+        note = session.scalars(select(Event).where(Event.submission_id == ids[0]).order_by(Event.id.desc())).first()
+        assert note.state == "grading" and "no live worker holds it" in note.detail, note.detail
+        # ids[0] was re-sent just now, so it is young again: the next pass leaves it to the worker that takes it
+        assert find_and_requeue(session=session, liveness=({"cpu@host": set()}, {"cpu": 0, "grade": 0})).gradings \
+            == [ids[1]]
+        # A graded sheet whose lab check never came: re-sent as a completing task by the same rule.
+        session.execute(update(Submission).where(Submission.id == ids[1]).values(status="graded", grading_at=old))
+        session.add(Grade(submission_id=ids[1], rubric_lesson="L03", rubric_version="2", rubric_hash="h", total=0,
+                          max_total=30, report={}))
+        session.commit()
+        resend = find_and_requeue(session=session, liveness=({"cpu@host": set()}, {"cpu": 0, "grade": 0}))
+        assert resend.gradings == [ids[1]]
+        note = session.scalars(select(Event).where(Event.submission_id == ids[1]).order_by(Event.id.desc())).first()
+        assert note.state == "completing" and "no live worker holds it" in note.detail, note.detail
