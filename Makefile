@@ -38,7 +38,7 @@ run: $(STAMP)
 TEST_WORKERS ?= auto
 PYTEST_ARGS ?=
 test: $(STAMP)
-	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadgroup $(PYTEST_ARGS)
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder $(PYTEST_ARGS)
 
 check: $(STAMP)
 	$(VENV)/bin/grader check --backend cpu --out out/check

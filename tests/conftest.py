@@ -53,9 +53,18 @@ def pytest_collection_modifyitems(config, items):
 
     `--shuffle-seed=N` reorders them first (issue 37: no test may depend on the order or on another test's rows).
     A module's tests stay together, so module fixtures are built once; every xdist process draws the same order from
-    the same seed, as xdist requires, and loadgroup hands out the groups in that shuffled order."""
+    the same seed, as xdist requires, and loadgroup hands out the groups in that shuffled order.
+
+    Unshuffled, the modules that wait on real services or run Genesis (an `integration` or `slow` test among them) go
+    first, the many short ones after, so the short ones fill both processes at the end rather than one long module
+    running alone (longest first). `make test` passes --no-loadscope-reorder: xdist's own reordering would sort the
+    groups by their number of tests instead, which puts single long tests (the container stack, the isolated Genesis
+    runs) among the short ones."""
     seed = config.getoption("--shuffle-seed")
-    if seed is not None:
+    if seed is None:
+        heavy = {item.path for item in items if item.get_closest_marker("integration") or item.get_closest_marker("slow")}
+        items.sort(key=lambda item: item.path not in heavy)  # stable: the order within each part is kept
+    else:
         import random
 
         rng = random.Random(seed)
