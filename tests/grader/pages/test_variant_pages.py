@@ -209,3 +209,27 @@ def test_while_the_pool_is_measured_the_pages_say_the_lab_is_being_prepared(api)
         for page in (course.text, form.text):
             assert words(texts.parameter_summary(variant, "en")) not in page
     assert variant_of(assignment_id, "alice") is None
+
+
+def test_a_variant_submissions_report_asks_the_students_own_questions_in_their_language(api):
+    from grader.core.db import new_session
+    from grader.core.grading import store_grade
+    from grader.core.models import Submission
+
+    assignment_id = pooled_assignment(api)
+    response = api.client.post("/v1/submissions", json={"sheet": reference_sheet(), "assignment_id": assignment_id},
+                               headers=api.as_("alice"))
+    assert response.status_code == 202, response.text
+    sid = response.json()["id"]
+    book = rubric.load_rubric("L03")
+    with new_session() as session:  # graded as the grader would, before any run finished (every item not measured)
+        submission = session.get(Submission, sid)
+        own = drawn()[submission.variant.name]
+        report = rubric.grade_sheet(rubric.parse_sheet(submission.sheet), {}, book, own)
+        store_grade(session=session, submission=submission, book=book, report=report, execution_s=0.0, complete=True)
+        session.commit()
+    for locale, headers in (("en", {}), ("zh", ZH)):
+        page = api.client.get(f"/submissions/{sid}", headers=api.as_("alice") | headers)
+        assert page.status_code == 200, page.text
+        assert words(texts.item_question(book.item("B1"), own, locale)) in page.text, locale
+        assert words(texts.item_question(book.item("B1"), None, locale)) not in page.text
