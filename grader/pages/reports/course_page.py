@@ -1,5 +1,6 @@
 """A student's course page (`/courses/COURSE`): the course's assignments with the dates that apply to them, what a
-submission now would meet, their attempts and the score that counts so far (grader.services.reports.course_page). The
+submission now would meet, their attempts and the score that counts so far, and their own lab's parameters at an
+assignment with a variant pool (grader.services.reports.course_page). The
 course's staff are sent to its class dashboard; anyone else gets the not-found page."""
 
 from __future__ import annotations
@@ -9,7 +10,7 @@ from fastapi.responses import HTMLResponse, RedirectResponse
 
 from grader.web.deps import SessionDep
 from grader.pages.auth import SignedIn
-from grader.pages.templates import TEMPLATES
+from grader.pages.templates import TEMPLATES, request_locale
 from grader.services.reports.course_page import student_course
 from grader.services.errors import NotFound
 from grader.services.identity import access
@@ -24,4 +25,4 @@ def course_page(request: Request, course: str, session: SessionDep, user: Signed
     if access.is_staff(user):
         return RedirectResponse(f"/courses/{course}/dashboard", status_code=status.HTTP_303_SEE_OTHER)
     return TEMPLATES.TemplateResponse(request, "reports/course_page.html", {
-        "user": user, "lines": student_course(session=session, student=user)})
+        "user": user, "lines": student_course(session=session, student=user, locale=request_locale(request))})

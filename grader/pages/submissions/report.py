@@ -13,6 +13,8 @@ from fastapi.responses import HTMLResponse, JSONResponse, Response
 from grader.web import etag
 from grader.web.deps import SessionDep
 from grader.core.grades import grade_history
+from grader.core.rubrics import stored_version
+from grader.core.variants import submission_variant
 from grader.core.states import SubmissionState
 from grader.core.models import Submission
 from grader.pages.auth import SignedIn, SignedInFetch
@@ -25,6 +27,7 @@ from grader.services.reports import exports, series as chart_series
 from grader.services.submissions import submit as submissions
 from grader.services.errors import NotFound
 from grader.services.submissions.visibility import attempt_standing, grade_view
+from rubric.variants import texts
 
 PART_TITLES = {
     "A": "Part A: contact and time step", "B": "Part B: friction and stopping distance",
@@ -92,7 +95,23 @@ def report_response(request: Request, session, user, submission: Submission, *, 
         "user": user, "view": view, "part_titles": PART_TITLES, "attempt": attempt,
         "history": [] if grade.hidden else grade_history(session, submission.id),
         "charts": _charts(submission, grade.withheld_runs),
-        "series_url": f"/submissions/{submission.id}/series.json"} | (extra or {}), status_code=status_code)
+        "series_url": f"/submissions/{submission.id}/series.json",
+        "variant_questions": _variant_questions(session, submission, view, request_locale(request)),
+    } | (extra or {}), status_code=status_code)
+
+
+def _variant_questions(session, submission: Submission, view, locale: str) -> dict[str, str]:
+    """A variant submission's questions in the reader's language, by item id: its report stores them in English with
+    the variant's numbers, which the lesson's translations (of the shipped wording) do not know. Only where the stored
+    text is the variant's own English question, so the page never words a question otherwise than it was graded."""
+    variant = submission_variant(submission)
+    if variant is None or view.grade is None or locale == "en":
+        return {}
+    stored = view.grade.stored
+    book = stored_version(session, stored.rubric_lesson, stored.rubric_version, stored.rubric_hash)
+    items = {item.id: item for item in book.items} if book is not None else {}
+    return {row.id: texts.item_question(items[row.id], variant, locale) for row in view.items
+            if row.id in items and texts.item_question(items[row.id], variant) == row.question}
 
 
 def _charts(submission: Submission, withheld: dict[str, str]) -> list:

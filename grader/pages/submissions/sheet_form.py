@@ -1,7 +1,9 @@
 """A student's prediction sheet as a form (grader.services.submissions.sheet_form), for one assignment or their free sheet: the
 draft kept on the server, checked by the submission's own rules, imported from and exported to the API's YAML, and
 submitted through the same service as the API's POST. For the course's students and instructors; anyone else gets
-the not-found page."""
+the not-found page. A student at an assignment with a variant pool fills the form of their own lab (its parameters
+at the top, its numbers in the questions, its baseline in the config editor and the one-factor check); until the pool
+is ready the page says the lab is being prepared."""
 
 from __future__ import annotations
 
@@ -27,8 +29,10 @@ from grader.pages.templates import TEMPLATES, request_locale
 from grader.services.setup import assignments
 from grader.services.submissions import drafts, sheets, submit as submissions
 from grader.services.submissions import sheet_form as form_logic
-from grader.services.errors import DomainError, Invalid, NotFound, Refused
+from grader.services.errors import Conflict, DomainError, Invalid, NotFound, Refused
 from grader.services.identity import access
+from rubric import Variant
+from rubric.variants import texts
 
 router = APIRouter(include_in_schema=False)
 # A sheet's YAML is a few kilobytes; the app's body limit (BodyGuard) bounds the upload before this does.
@@ -93,6 +97,22 @@ def _standing(session, user: User, assignment: Assignment | None) -> dict | None
         return {"refused": exc}
     return {"attempt": attempt, "late": assignments.late_text(late),
             "penalty": assignments.penalty_fraction(assignment, late)}
+
+
+def _variant(session, user: User, assignment: Assignment | None) -> Variant | None:
+    """The student's own variant of the assignment (form_logic.form_variant: fixed at this first view), read once per
+    request; None for a free sheet, staff and an assignment without a pool. Conflict while its pool is not ready."""
+    variants = session.info.setdefault("sheet_form_variants", {})
+    key = (user.id, assignment.id if assignment is not None else None)
+    if key not in variants:
+        variants[key] = form_logic.form_variant(session=session, assignment=assignment, user=user)
+    return variants[key]
+
+
+def _preparing(request: Request, user: User, assignment: Assignment, code: int = status.HTTP_200_OK) -> HTMLResponse:
+    """The page of an assignment whose lab (its variant pool) is still being measured: no form, no parameters yet."""
+    return TEMPLATES.TemplateResponse(request, "submissions/sheet_form.html", {
+        "user": user, "a": assignment, "preparing": True, "path": _path(assignment)}, status_code=code)
 
 
 def _book(session, user: User, lesson: str):
@@ -182,9 +202,10 @@ def _config_field(book, role: str, field: form_logic.Input) -> ConfigField:
                        UNCOUNTED.match(path) is None)
 
 
-def _config_fields(book, role: str, sheet: dict) -> list[ConfigField]:
-    """The role's config fields, those the lesson lets change first (in the rule's order), then the held ones."""
-    fields = [_config_field(book, role, f) for f in form_logic.config_inputs(book, role, sheet)]
+def _config_fields(book, role: str, sheet: dict, variant: Variant | None = None) -> list[ConfigField]:
+    """The role's config fields (their baseline the variant's when given), those the lesson lets change first (in the
+    rule's order), then the held ones."""
+    fields = [_config_field(book, role, f) for f in form_logic.config_inputs(book, role, sheet, variant)]
     order = book.configs[role].may_change
     first = sorted((f for f in fields if f.changeable),
                    key=lambda f: next((n for n, m in enumerate(order) if f.input.label == m
@@ -235,25 +256,31 @@ def _field_label(field: str, items, configs: dict[str, list[ConfigField]], gette
     return "", "", path
 
 
-def _words(request: Request):
-    """The request's gettext for a page module's own words: `say(msgid, **values)`, and the lesson's words."""
+def _words(request: Request, variant: Variant | None = None):
+    """The request's gettext for a page module's own words: `say(msgid, **values)`, and the lesson's words (an answer
+    label as a student on `variant` reads it, with their numbers)."""
     locale = request_locale(request)
 
     def say(msgid: str, **values) -> str:
         text = i18n.gettext(locale, msgid)
         return text % values if values else text
 
-    return say, lambda section, text: i18n.lesson_word(locale, section, text)
+    def lesson_word(section: str, text: str) -> str:
+        if variant is not None and section == "labels":
+            return form_logic.answer_label(text, variant, locale)
+        return i18n.lesson_word(locale, section, text)
+
+    return say, lesson_word
 
 
 def _summary(request: Request, items, configs: dict[str, list[ConfigField]], errors: list[dict], checks: list,
-             refusal: DomainError | None, checked: bool) -> dict | None:
+             refusal: DomainError | None, checked: bool, variant: Variant | None = None) -> dict | None:
     """What the top of the page says after Check or a refused Submit: each error with its field's words and a link
     to its input, each config's verdict with the items it voids, and whether the sheet passes every rule (only when
     nothing is wrong and no config breaks the one-factor rule)."""
     if not checked and refusal is None:
         return None
-    say, lesson_word = _words(request)
+    say, lesson_word = _words(request, variant)
     rows, seen = [], set()
     for error in errors:
         if (error["field"], error["rule"]) in seen:  # each message once
@@ -275,18 +302,24 @@ def _render(request: Request, session, user: User, assignment: Assignment | None
             refusal: DomainError | None = None, code: int = status.HTTP_200_OK,
             unlock: str | None = None, submitting: bool = False) -> HTMLResponse:
     part, lesson = _part_and_lesson(assignment)
+    try:
+        variant = _variant(session, user, assignment)
+    except Conflict:  # the pool is still being measured: no form until the student's lab is known
+        return _preparing(request, user, assignment)
+    locale = request_locale(request)
     if too_large := sheets.size_problems(sheet):  # a draft saved before the caps held: never rendered input by input
         refusal = refusal or Invalid(OVER_CAPS, too_large)
         errors, sheet = refusal.errors, _starting_sheet(user)
     book = _book(session, user, lesson)
     ids = assignments.item_ids(lesson, part)
-    items = form_logic.item_forms(book, ids)
+    items = form_logic.item_forms(book, ids, variant, locale)
     book_configs = book if form_logic.has_configs(part) else None
-    configs = ({role: _config_fields(book, role, sheet) for role in form_logic.FORM_CONFIGS}
+    configs = ({role: _config_fields(book, role, sheet, variant) for role in form_logic.FORM_CONFIGS}
                if book_configs else {})
     checks = []
     if checked and book_configs is not None:
-        checks, config_errors = form_logic.config_checks(session=session, sheet=sheet, part=part, book=book)
+        checks, config_errors = form_logic.config_checks(session=session, sheet=sheet, part=part, book=book,
+                                                         variant=variant)
         shown = {(e["field"], e["rule"]) for e in errors or []}  # a set: one pass, whatever the number of errors
         errors = (errors or []) + [e for e in config_errors if (e["field"], e["rule"]) not in shown]
     names = (["file", "student"] + [i.name for item in items for i in item.inputs]
@@ -294,21 +327,27 @@ def _render(request: Request, session, user: User, assignment: Assignment | None
     placed, unplaced = form_logic.by_input(errors or [], names)
     extra_roles = sorted(set((sheet.get("configs") or {}) if isinstance(sheet.get("configs"), dict) else ())
                          - set(form_logic.FORM_CONFIGS))
-    values = form_logic.form_state(sheet, items, book_configs)
+    values = form_logic.form_state(sheet, items, book_configs, variant)
     # A role's held fields are editable when asked for (the "change a held field" button without the script), when
     # the draft already changed one, or when an error sits in one.
     changed_roles = {role for role, fields in configs.items() if _held_changed(fields, values)}
     unlocked = changed_roles | {role for role, fields in configs.items()
                                 if role == unlock or any(not f.changeable and f.name in placed for f in fields)}
-    voids = (form_logic.held_voids(session=session, sheet=sheet, part=part, book=book)
+    voids = (form_logic.held_voids(session=session, sheet=sheet, part=part, book=book, variant=variant)
              if book_configs is not None else {})
     standing = _standing(session, user, assignment)
-    summary = _summary(request, items, configs, errors or [], checks, refusal, checked)
+    summary = _summary(request, items, configs, errors or [], checks, refusal, checked, variant)
+    # A student's own lab: its parameters said once at the top, A1's labels and the configs' rules with its numbers.
+    lab = None if variant is None else {
+        "summary": texts.parameter_summary(variant, locale),
+        "label": lambda text: form_logic.answer_label(text, variant, locale),
+        "rules": {role: texts.config_description(book, role, variant, locale) for role in configs},
+    }
     return TEMPLATES.TemplateResponse(request, "submissions/sheet_form.html", {
         "user": user, "a": assignment, "part": part, "lesson": lesson, "path": _path(assignment), "items": items,
         "configs": configs, "rules": {role: book.configs[role] for role in configs}, "extra_roles": extra_roles,
         "values": values, "placed": placed, "unplaced": unplaced, "unlocked": unlocked, "voids": voids,
-        "changed_roles": changed_roles, "submitting": submitting,
+        "changed_roles": changed_roles, "submitting": submitting, "lab": lab,
         "checked": checked, "checks": checks, "notice": notice, "refusal": refusal, "summary": summary,
         # the rule that refuses a submission now, said once: in the summary when a Submit was refused by it
         "standing": standing,
@@ -331,7 +370,7 @@ def _posted_sheet(session, user: User, assignment: Assignment | None, form) -> d
     previous = _draft_sheet(session, user, assignment)
     sheets.check_size(previous, detail=OVER_CAPS)
     sheet = form_logic.sheet_from_form(form, items=items, book=book if form_logic.has_configs(part) else None,
-                                       previous=previous)
+                                       previous=previous, variant=_variant(session, user, assignment))
     sheet["lesson"] = lesson
     return sheet
 
@@ -360,7 +399,8 @@ def _config_verdicts(session, assignment: Assignment | None, user: User, sheet: 
     if not form_logic.has_configs(part):
         return []
     checks, _ = form_logic.config_checks(session=session, sheet=sheet, part=part,
-                                         book=_book(session, user, lesson))
+                                         book=_book(session, user, lesson),
+                                         variant=_variant(session, user, assignment))
     return checks
 
 
@@ -413,6 +453,10 @@ def _confirmed(request: Request, session, user: User, assignment: Assignment | N
 
 
 def _act(request: Request, session, user: User, assignment: Assignment | None, form: FormData) -> Response:
+    try:
+        _variant(session, user, assignment)
+    except Conflict:  # nothing is saved or submitted before the student's lab is known
+        return _preparing(request, user, assignment, code=status.HTTP_409_CONFLICT)
     action = form.get("action") or "save"
     if action == "confirm":  # the confirmation's form carries no answers: it submits the saved draft
         return _confirmed(request, session, user, assignment, form)

@@ -1,7 +1,9 @@
 """A student's course page as data: per assignment of the course, the dates that apply to them, what a submission
 now would meet (admitted or refused, how late, the penalty), their attempts and the score that counts so far. Every
 rule is the one the API applies (grader.services.setup.assignments), every score passes the one visibility rule
-(grader.services.submissions.visibility)."""
+(grader.services.submissions.visibility). At an assignment with a variant pool it also states the student's own lab
+(their variant's parameters, in the reader's language: rubric.variants.texts), fixed at this first view as the form
+fixes it (grader.services.setup.student_variants), or that the lab is still being prepared; never another variant's."""
 
 from __future__ import annotations
 
@@ -13,8 +15,10 @@ from sqlalchemy.orm import Session
 
 from grader.core.models import Assignment, Submission, User, utcnow
 from grader.services.setup import assignments as logic
-from grader.services.errors import Refused
+from grader.services.setup import student_variants
+from grader.services.errors import Conflict, Refused
 from grader.services.submissions.visibility import attempt_standing, grade_view
+from rubric.variants import texts
 
 
 @dataclass(frozen=True)
@@ -43,6 +47,17 @@ class NowLine:
 
 
 @dataclass(frozen=True)
+class LabLine:
+    """The student's own lab at an assignment with a variant pool: being prepared (its variants are still measured),
+    or ready with their parameters: a summary and one row per parameter (words, value, whether it differs from the
+    lesson), in the reader's language."""
+
+    ready: bool
+    summary: str | None = None
+    rows: list[tuple[str, str, str, bool]] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
 class AssignmentLine:
     assignment: Assignment
     open_at: datetime
@@ -55,6 +70,7 @@ class AssignmentLine:
     last_hour: int  # submissions in the last 60 minutes (the hourly limit's window)
     now: NowLine
     attempts: list[AttemptLine] = field(default_factory=list)
+    lab: LabLine | None = None  # None: no variant pool, the lesson's own parameters
 
     @property
     def counting(self) -> AttemptLine | None:
@@ -93,11 +109,29 @@ def _attempt(session: Session, s: Submission, student: User, now: datetime) -> A
                        counts=standing["counts"], withheld=withheld if view.stored is not None else None)
 
 
-def student_course(*, session: Session, student: User, now: datetime | None = None) -> list[AssignmentLine]:
-    """The student's view of every assignment of their course, by due date."""
+def _lab(session: Session, assignment: Assignment, student: User, locale: str) -> LabLine | None:
+    """The student's own lab at `assignment` (their variant, fixed now if this is their first view); None without a
+    pool. A pool still measuring, or one whose every variant was dropped, is a lab being prepared."""
+    try:
+        variant = student_variants.student_variant(session=session, assignment=assignment, student=student)
+    except Conflict:
+        return LabLine(ready=False)
+    if variant is None:
+        return None
+    return LabLine(ready=True, summary=texts.parameter_summary(variant, locale),
+                   rows=texts.parameter_rows(variant, locale))
+
+
+def student_course(*, session: Session, student: User, now: datetime | None = None,
+                   locale: str = "en") -> list[AssignmentLine]:
+    """The student's view of every assignment of their course, by due date; their lab's words in `locale`. A variant
+    fixed for them here is committed (the form and a submission then meet the same one)."""
     now = now or utcnow()
+    course = logic.of_course(session=session, course=student.course)
+    labs = {a.id: _lab(session, a, student, locale) for a in course}
+    session.commit()  # before anything else is read: what the page shows is read after it
     lines = []
-    for a in logic.of_course(session=session, course=student.course):
+    for a in course:
         dates = logic.dates_for(session=session, assignment=a, student=student)
         mine = list(session.scalars(select(Submission).where(Submission.assignment_id == a.id,
                                                              Submission.student_id == student.id)
@@ -109,5 +143,5 @@ def student_course(*, session: Session, student: User, now: datetime | None = No
             attempts_used=len(mine),
             attempts_left=None if a.max_attempts is None else max(0, a.max_attempts - len(mine)),
             last_hour=len(last_hour), now=_now(session=session, assignment=a, student=student, now=now),
-            attempts=[_attempt(session, s, student, now) for s in mine]))
+            attempts=[_attempt(session, s, student, now) for s in mine], lab=labs[a.id]))
     return lines

@@ -4,6 +4,11 @@ submission (grader.services.submissions.sheets); the configs' field-by-field dif
 
 A form input is named by its path in the sheet (`answers.C1.substep_dt.value`), so every server message, which names
 that path, lands beside its input.
+
+A student at an assignment with a variant pool (issue 34) fills the form of their own lab (`form_variant`): the
+questions and A1's labels name their numbers (rubric.variants.texts), the config editor starts from their variant's
+baseline (rubric.one_factor.role_baseline) and the one-factor check compares with it. Staff and free sheets keep the
+lesson's shipped parameters.
 """
 
 from __future__ import annotations
@@ -25,13 +30,17 @@ import rubric
 from grader.core import content_key
 from grader.core.lifecycle import stored_result
 from grader.core.states import AssignmentParts
-from grader.core.models import CaseRun, Measurement
+from grader.core.models import Assignment, CaseRun, Measurement, User
+from grader.services.identity import access
+from grader.services.setup import student_variants
 from grader.services.submissions import sheets
 from grader.services.errors import Invalid, field_errors
-from rubric import BASELINE_CASES, describe_errors, one_factor_findings
+from rubric import Variant, describe_errors, one_factor_findings
+from rubric.one_factor import role_baseline
 from rubric.rubrics import Rubric
-from rubric.scoring import LESSON_RUNS
+from rubric.scoring import lesson_run_specs
 from rubric.sheet import Answers, Configs, PredictionSheet, Quantity
+from rubric.variants import texts
 
 LESSON = typing.get_args(PredictionSheet.model_fields["lesson"].annotation)[0]
 # The configs a student edits in the form (the rest travel in the YAML only): each starts from its rule's baseline.
@@ -58,9 +67,22 @@ class Input:
 @dataclass(frozen=True)
 class ItemForm:
     id: str
-    question: str
+    question: str  # the rubric's (English; the page translates it), or the student's variant's in their locale
     part: str
     inputs: tuple[Input, ...]
+    localized: bool = False  # `question` is already in the reader's locale (a variant's text): never translated again
+
+
+def form_variant(*, session: Session, assignment: Assignment | None, user: User) -> Variant | None:
+    """The variant whose lab this form is for: a student's own at an assignment with a variant pool, fixed at this
+    first view (grader.services.setup.student_variants; committed, so a later submission meets the same one); None
+    for a free sheet, staff and an assignment without a pool. Conflict while the pool is not ready."""
+    if assignment is None or not access.is_student(user):
+        return None
+    variant = student_variants.student_variant(session=session, assignment=assignment, student=user)
+    if variant is not None:
+        session.commit()
+    return variant
 
 
 def _choices(annotation) -> tuple[str, ...] | None:
@@ -113,17 +135,29 @@ def answer_inputs(model: type[BaseModel], prefix: str) -> list[Input]:
     return out
 
 
-def item_forms(book: Rubric, item_ids: list[str]) -> list[ItemForm]:
-    """The form of each of the assignment's items: its question from the rubric, its inputs from the answer model."""
-    return [ItemForm(i, book.item(i).question, book.item(i).part,
-                     tuple(answer_inputs(Answers.model_fields[i].annotation, f"answers.{i}"))) for i in item_ids]
+def item_forms(book: Rubric, item_ids: list[str], variant: Variant | None = None, locale: str = "en"
+               ) -> list[ItemForm]:
+    """The form of each of the assignment's items: its question from the rubric (under a variant, with the variant's
+    numbers in `locale`: rubric.variants.texts), its inputs from the answer model."""
+    def question(item_id: str) -> str:
+        item = book.item(item_id)
+        return item.question if variant is None else texts.item_question(item, variant, locale)
+
+    return [ItemForm(i, question(i), book.item(i).part,
+                     tuple(answer_inputs(Answers.model_fields[i].annotation, f"answers.{i}")), variant is not None)
+            for i in item_ids]
+
+
+def answer_label(label: str, variant: Variant | None, locale: str) -> str:
+    """An answer input's label as a student on `variant` reads it ('samples 150' names their count) in `locale`."""
+    return texts.answer_label(label, variant, locale)
 
 
 # --- configs ----------------------------------------------------------------------------------------------------------
 
-def config_baseline(book: Rubric, role: str):
-    """The lesson case a config role's form starts from: its one-factor rule's baseline."""
-    return BASELINE_CASES[book.configs[role].baseline]
+def config_baseline(book: Rubric, role: str, variant: Variant | None = None):
+    """The lesson case a config role's form starts from: its one-factor rule's baseline, the variant's when given."""
+    return role_baseline(role, book, variant)
 
 
 def _dump(spec) -> dict:
@@ -145,9 +179,10 @@ def _merge(base: Any, over: Any) -> Any:
     return over
 
 
-def config_values(book: Rubric, role: str, sheet: dict) -> dict[str, Any]:
-    """A config's fields as the form shows them: the draft's own over its baseline (named after the role), by path."""
-    base = _dump(config_baseline(book, role)) | {"name": role}
+def config_values(book: Rubric, role: str, sheet: dict, variant: Variant | None = None) -> dict[str, Any]:
+    """A config's fields as the form shows them: the draft's own over its baseline (the variant's when given; named
+    after the role), by path."""
+    base = _dump(config_baseline(book, role, variant)) | {"name": role}
     own = sheet.get("configs", {}).get(role) if isinstance(sheet.get("configs"), dict) else None
     merged = _merge(base, own) if isinstance(own, dict) else base
     return flatten({k: v for k, v in merged.items() if k not in HIDDEN_CONFIG_FIELDS}, f"configs.{role}")
@@ -165,15 +200,15 @@ def may_change(book: Rubric, role: str, path: str) -> bool:
     return any(path == field or path.startswith(field + ".") for field in book.configs[role].may_change)
 
 
-def config_inputs(book: Rubric, role: str, sheet: dict) -> list[Input]:
-    """One input per field of the config, in the form `configs.ROLE.table.friction`: the baseline case's fields, and
-    any more the draft has (a third lane from a YAML), each asked as its baseline value's type (a float field stays a
-    float field whatever the draft holds), its choices where the field has them."""
+def config_inputs(book: Rubric, role: str, sheet: dict, variant: Variant | None = None) -> list[Input]:
+    """One input per field of the config, in the form `configs.ROLE.table.friction`: the baseline case's fields (the
+    variant's baseline when given), and any more the draft has (a third lane from a YAML), each asked as its baseline
+    value's type (a float field stays a float field whatever the draft holds), its choices where the field has them."""
     widgets = {bool: "radio", int: "integer", float: "number"}
-    baseline = config_baseline(book, role)
+    baseline = config_baseline(book, role, variant)
     defaults = flatten(_dump(baseline), f"configs.{role}")
     inputs = []
-    for name, value in config_values(book, role, sheet).items():
+    for name, value in config_values(book, role, sheet, variant).items():
         path = name.removeprefix(f"configs.{role}.")
         typed = defaults.get(name, value)
         if isinstance(value, bool) or isinstance(typed, bool):
@@ -252,9 +287,11 @@ def _answer(form, field: Input) -> tuple[bool, Any]:
     return bool(get(".value")), quantity
 
 
-def sheet_from_form(form, *, items: list[ItemForm], book: Rubric | None, previous: dict) -> dict:
+def sheet_from_form(form, *, items: list[ItemForm], book: Rubric | None, previous: dict,
+                    variant: Variant | None = None) -> dict:
     """The sheet the form holds, in the API's shape. An optional field is written when it differs from its default or
-    the draft already had it, so a sheet imported from YAML comes back out as it went in."""
+    the draft already had it, so a sheet imported from YAML comes back out as it went in. `variant`: the student's,
+    whose baseline the config editor showed."""
     sheet: dict[str, Any] = {"lesson": LESSON, "student": (form.get("student") or "").strip()}
     for item in items:
         for field in item.inputs:
@@ -269,17 +306,20 @@ def sheet_from_form(form, *, items: list[ItemForm], book: Rubric | None, previou
                 _put(sheet, field.name, value)
         sheet.setdefault("answers", {}).setdefault(item.id, {})
     if book is not None:
-        sheet["configs"] = _configs_from_form(form, book, previous)
+        sheet["configs"] = _configs_from_form(form, book, previous, variant)
     return sheet
 
 
-def _configs_from_form(form, book: Rubric, previous: dict) -> dict:
+def _configs_from_form(form, book: Rubric, previous: dict, variant: Variant | None = None) -> dict:
     before = previous.get("configs") if isinstance(previous.get("configs"), dict) else {}
     configs = {role: spec for role, spec in before.items() if role not in FORM_CONFIGS}  # YAML-only roles travel on
     for role in FORM_CONFIGS:
+        # A field left out of a config takes the case schema's default, which is the lesson's shipped value: so the
+        # fields written are those that differ from the shipped baseline, under a variant too (its cube edge, say,
+        # is written; a field put back to the shipped value is left out and reads as that value).
         baseline = _dump(config_baseline(book, role))
         posted: dict[str, Any] = {}
-        for field in config_inputs(book, role, previous):
+        for field in config_inputs(book, role, previous, variant):
             text = (form.get(field.name) or "").strip()
             value = ({"true": True, "false": False}.get(text, text) if field.widget == "radio"
                      else _number(text, field.widget == "integer") if field.widget in ("number", "integer") else text)
@@ -295,15 +335,17 @@ def _configs_from_form(form, book: Rubric, previous: dict) -> dict:
     return configs
 
 
-def form_state(sheet: dict, items: list[ItemForm], book: Rubric | None) -> dict[str, Any]:
-    """What each input shows for a sheet (a draft): form strings by input name (lists for checkboxes)."""
+def form_state(sheet: dict, items: list[ItemForm], book: Rubric | None, variant: Variant | None = None
+               ) -> dict[str, Any]:
+    """What each input shows for a sheet (a draft): form strings by input name (lists for checkboxes); a config's
+    fields the draft leaves out show the baseline of `variant` (the student's) when given."""
     values: dict[str, Any] = {"student": sheet.get("student") or ""}
     for item in items:
         for field in item.inputs:
             values |= _shown(field, _get(sheet, field.name))
     if book is not None:
         for role in FORM_CONFIGS:
-            values |= {k: _text(v) for k, v in config_values(book, role, sheet).items()}
+            values |= {k: _text(v) for k, v in config_values(book, role, sheet, variant).items()}
     return values
 
 
@@ -382,40 +424,43 @@ class ConfigCheck:
     voids: list[str] = dataclasses.field(default_factory=list)
 
 
-def config_checks(*, session: Session, sheet: dict, part: str, book: Rubric
+def config_checks(*, session: Session, sheet: dict, part: str, book: Rubric, variant: Variant | None = None
                   ) -> tuple[list[ConfigCheck], list[dict[str, str]]]:
-    """The one-factor verdict the grader will apply (rubric.one_factor_findings) on the sheet's configs, whatever
-    the answers hold yet, with the items each broken config would void where that can be told; and the configs' own
-    errors."""
+    """The one-factor verdict the grader will apply (rubric.one_factor_findings) on the sheet's configs, against the
+    baselines of `variant` (the student's) when given, whatever the answers hold yet, with the items each broken config
+    would void where that can be told; and the configs' own errors."""
     try:
         configs = Configs.model_validate(sheet.get("configs") or {})
     except ValidationError as exc:
         return [], field_errors(describe_errors(exc), prefix="sheet.configs")
     probe = PredictionSheet.model_construct(lesson=LESSON, student="", answers=None, configs=configs)
-    findings = one_factor_findings(probe, book)
-    voids = _voided(session, sheet, part, book) if any(not f.ok for f in findings.values()) else {}
+    findings = one_factor_findings(probe, book, variant)
+    voids = _voided(session, sheet, part, book, variant) if any(not f.ok for f in findings.values()) else {}
     return [ConfigCheck(role=role, baseline=f.baseline, may_change=f.may_change, changes=f.changes,
                         violations=f.violations, verdict=f.describe(), voids=voids.get(f.describe(), []))
             for role, f in findings.items()], []
 
 
-def _voided(session: Session, sheet: dict, part: str, book: Rubric) -> dict[str, list[str]]:
-    """Item ids by the finding that voids them: the sheet graded as the grader would, on the lesson's cases as stored.
-    A config fault voids the items whose scoring rules read its run, which only running the rules tells; empty
-    while the sheet is invalid or a lesson case was never measured (such a rule would stop there first)."""
+def _voided(session: Session, sheet: dict, part: str, book: Rubric, variant: Variant | None = None
+            ) -> dict[str, list[str]]:
+    """Item ids by the finding that voids them: the sheet graded as the grader would, on the lesson's cases as stored
+    (the variant's, when given). A config fault voids the items whose scoring rules read its run, which only running
+    the rules tells; empty while the sheet is invalid or a lesson case was never measured (such a rule would stop there
+    first)."""
     try:
         parsed = sheets.parse_sheet(sheet, part)
     except ValidationError:
         return {}
-    results = _lesson_results(session)
-    return _voids_of(parsed, results, book) if results is not None else {}
+    results = _lesson_results(session, variant)
+    return _voids_of(parsed, results, book, variant) if results is not None else {}
 
 
-def _lesson_results(session: Session) -> dict | None:
-    """The lesson's own cases as stored (their results by name), or None while one was never measured."""
+def _lesson_results(session: Session, variant: Variant | None = None) -> dict | None:
+    """The lesson's own cases as stored (their results by name), under `variant` when given (its pool measured them),
+    or None while one was never measured."""
     results = {}
-    for name in LESSON_RUNS:
-        spec = BASELINE_CASES[name]
+    for spec in lesson_run_specs(variant):
+        name = spec.name
         inputs = content_key.key_inputs(spec.model_dump(mode="json", exclude_computed_fields=True),
                                         backend=spec.backend, precision=spec.precision)
         found = session.scalar(select(Measurement).where(Measurement.content_key == content_key.content_key(inputs)))
@@ -429,26 +474,28 @@ def _lesson_results(session: Session) -> dict | None:
     return results
 
 
-def _voids_of(parsed: PredictionSheet, results: dict, book: Rubric) -> dict[str, list[str]]:
+def _voids_of(parsed: PredictionSheet, results: dict, book: Rubric, variant: Variant | None = None
+              ) -> dict[str, list[str]]:
     voided: dict[str, list[str]] = {}
-    for item in rubric.grade_sheet(parsed, results, book).items:
+    for item in rubric.grade_sheet(parsed, results, book, variant).items:
         if item.verdict == "one_factor_violation":  # the rule stopped at the broken config, its finding as measured
             voided.setdefault(item.measured, []).append(item.id)
     return voided
 
 
-def held_voids(*, session: Session, sheet: dict, part: str, book: Rubric) -> dict[str, list[str]]:
+def held_voids(*, session: Session, sheet: dict, part: str, book: Rubric, variant: Variant | None = None
+               ) -> dict[str, list[str]]:
     """For each config the form edits, the items the grader would void if one of its held fields changed (any one:
     a broken config is never run, so every item reading its run is voided alike). Told by grading the sheet with
-    that config's seed moved, on the lesson's cases as stored; a role is absent while the sheet is invalid or the
-    lesson's cases were never measured."""
+    that config's seed moved, on the lesson's cases as stored (the variant's, when given); a role is absent while the
+    sheet is invalid or the lesson's cases were never measured."""
     if not isinstance(sheet.get("configs"), dict):
         return {}
     try:
         sheets.parse_sheet(sheet, part)
     except ValidationError:
         return {}
-    results = _lesson_results(session)
+    results = _lesson_results(session, variant)
     if results is None:
         return {}
     out = {}
@@ -461,7 +508,7 @@ def held_voids(*, session: Session, sheet: dict, part: str, book: Rubric) -> dic
             parsed = sheets.parse_sheet(probe, part)
         except (ValidationError, TypeError, ValueError):
             continue
-        out[role] = sorted({i for finding, ids in _voids_of(parsed, results, book).items()
+        out[role] = sorted({i for finding, ids in _voids_of(parsed, results, book, variant).items()
                             if finding.startswith(f"{role} vs ") for i in ids})
     return out
 
