@@ -92,8 +92,10 @@ def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id
                                                   "rule": f"no assignment {assignment_id} in your course"}])
         # the time and attempt rules come before the sheet: a closed assignment takes nothing
         attempt, late_seconds = assignments.admit(session=session, assignment=assignment, student=user, now=utcnow())
-    # The student's own lab at an assignment with a variant pool (fixed at their first visit); None: the shipped one.
-    variant = student_variants.variant_for(session=session, assignment=assignment, student=user) if assignment else None
+    # The student's own lab at an assignment with a variant pool (fixed at their first visit); None: the shipped one,
+    # which is also what staff submitting there work on (as their form shows), never a variant taken from the pool.
+    variant = (student_variants.variant_for(session=session, assignment=assignment, student=user)
+               if assignment is not None and access.is_student(user) else None)
     try:
         parsed = sheets.parse_sheet(sheet, assignment.part if assignment else "sheet")
         book = course_rubric(session, user.course_id, parsed.lesson)

@@ -193,6 +193,7 @@ def test_a_submission_to_a_pool_assignment_runs_and_records_its_students_variant
         own = session.get(Submission, response.json()["id"])
         fixed = session.scalar(select(StudentVariant).where(StudentVariant.assignment_id == assignment_id))
         assert own.variant_id == fixed.variant_id and own.variant.name in ("v7-1", "v7-2")
+        alice_id = own.student_id
         variant = rubric.Variant(id=own.variant.name, parameters=own.variant.parameters)
         specs = rubric.cases_to_run(rubric.parse_sheet(sheet), rubric.load_rubric("L03"), variant)
         assert {run.name: run.spec for run in own.case_runs} == {
@@ -201,6 +202,17 @@ def test_a_submission_to_a_pool_assignment_runs_and_records_its_students_variant
         assert n1.spec["dt"] == variant.parameters["fine_dt"] and n1.spec["duration"] == variant.parameters["duration"]
         shipped = session.get(Submission, free.json()["id"])
         assert shipped.variant_id is None
+    # An instructor's sheet to the same assignment is on the lesson's shipped cases, as the instructor's form shows,
+    # and takes no variant from the pool (a student's share of it is counted by StudentVariant rows).
+    staff = api.client.post("/v1/submissions", json={"sheet": sheet, "assignment_id": assignment_id},
+                            headers=api.as_("prof"))
+    assert staff.status_code == 202, staff.text
+    with new_session() as session:
+        assert session.get(Submission, staff.json()["id"]).variant_id is None
+        assert session.scalars(select(StudentVariant.student_id).where(
+            StudentVariant.assignment_id == assignment_id)).all() == [alice_id]
+    with new_session() as session:
+        shipped = session.get(Submission, free.json()["id"])
         assert {run.name: run.spec for run in shipped.case_runs} == {
             s.name: s.model_dump(mode="json", exclude_computed_fields=True)
             for s in rubric.cases_to_run(rubric.parse_sheet(sheet), rubric.load_rubric("L03"))}
