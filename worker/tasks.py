@@ -29,12 +29,27 @@ RETRY = dict(autoretry_for=INFRA_ERRORS, max_retries=settings.max_infra_retries,
 @app.task(name="worker.tasks.run_case_run", **RETRY)
 def run_case_run(case_run_id: int, delivery: int) -> None:
     with new_session() as session:
-        to_grade = process_case_run(session=session, case_run_id=case_run_id, delivery=delivery,
-                                    run_case=slot.run_case_in_slot)
+        try:
+            to_grade = process_case_run(session=session, case_run_id=case_run_id, delivery=delivery,
+                                        run_case=slot.run_case_in_slot)
+        except INFRA_ERRORS as exc:  # the retry (RETRY) must find the run claimable, not held by this process
+            _release(session, case_run_id, delivery, exc)
+            raise
     if to_grade is not None:
         grade_submission.apply_async(args=[to_grade], queue=GRADE_QUEUE)
     with new_session() as session:  # after grading was sent: the audit never delays a grade
         audit_finished_run(session, case_run_id)
+
+
+def _release(session, case_run_id: int, delivery: int, error: BaseException) -> None:
+    """Give back this process's claim of the run after an infrastructure error (grader.core.lifecycle.release). If
+    the database cannot be reached for that either, the reconciler finds the run held by no live task (liveness)."""
+    try:
+        session.rollback()
+        if lifecycle.release(session, case_run_id, delivery, f"{type(error).__name__} in the worker"):
+            session.commit()
+    except INFRA_ERRORS:
+        logging.getLogger(__name__).exception("could not release case run %s after %r", case_run_id, error)
 
 
 @app.task(name="worker.tasks.grade_submission", **RETRY)

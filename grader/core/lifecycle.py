@@ -143,8 +143,30 @@ def resend(session: Session, run: CaseRun, *, by: str) -> None:
 
 def lock_submission(session: Session, submission_id: int) -> None:
     """Lock a submission's row: its finishers (`_finish`) and a resend serialize, so exactly one sees the last run
-    done. Take it before a case run's lock (the order `_finish` takes)."""
-    session.execute(select(Submission.id).where(Submission.id == submission_id).with_for_update())
+    done. Take it before a case run's lock (the order `_finish` takes).
+
+    FOR NO KEY UPDATE (PostgreSQL; SQLite serializes writers anyway): it excludes another finisher as FOR UPDATE does,
+    but not the key-share lock an insert of a row referencing the submission takes (an event, a grade). Two case runs
+    of one submission finishing at once on two slots deadlocked under FOR UPDATE ("while locking tuple in relation
+    submissions"): each transaction's key-share lock blocked the other's upgrade."""
+    session.execute(select(Submission.id).where(Submission.id == submission_id).with_for_update(key_share=True))
+
+
+def release(session: Session, case_run_id: int, delivery: int, reason: str) -> bool:
+    """A run this process claimed and could not finish because the database or the broker failed mid-way: back to
+    queued under the same delivery, so the task's own retry claims it again on whichever pool process takes it (its
+    tries count it). Without this, a retry on a sibling process found the run held by a live process and dropped it,
+    leaving it running until the reconciler or its lease. False (nothing changed) when the run is not this process's
+    claim of this delivery. The caller commits."""
+    run = session.get(CaseRun, case_run_id, with_for_update=True)
+    if (run is None or run.delivery != delivery or run.status != CaseRunState.RUNNING or run.worker != HOST
+            or run.worker_pid != os.getpid()):
+        return False
+    run.status, run.queued_at = CaseRunState.QUEUED, utcnow()
+    run.worker = run.worker_pid = run.lease_until = None
+    session.add(Event(submission_id=run.submission_id, case_run_id=run.id, state="released",
+                      detail=f"{reason}; queued again for the task's retry, delivery {run.delivery}"))
+    return True
 
 
 def claim(*, session: Session, case_run_id: int, delivery: int) -> tuple[CaseRun | None, bool]:
