@@ -303,6 +303,8 @@ class CountedGradePublic(BaseModel):
     max_score: float
     penalty: float = Field(description="Fraction of the raw score taken for lateness (per day late, capped)")
     counted_score: float
+    variant: str | None = Field(None, description="The student's lab variant (issue 34) the attempt was graded on; "
+                                                  "null on an assignment without a variant pool")
 
 
 class RosterImport(Strict):

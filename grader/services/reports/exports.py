@@ -80,12 +80,14 @@ def _with_overrides(text: str, grades: list[Grade]) -> str:
 
 def counted_grades_csv(*, session: Session, assignment: Assignment) -> tuple[str, str]:
     """(file name, CSV) of the assignment's counted grades: student, counted score, raw score, penalty, attempt,
-    submission and when it was submitted (UTC)."""
-    rows: list[list] = [list(COUNTED_COLUMNS)]
-    for c in assignments.counted_grades(session=session, assignment=assignment):
-        r = assignments.counted_public(c)
+    submission and when it was submitted (UTC); and a last `variant` column once any row was graded on a variant."""
+    counted = [assignments.counted_public(c) for c in assignments.counted_grades(session=session, assignment=assignment)]
+    on_variants = any(r.variant for r in counted)
+    rows: list[list] = [[*COUNTED_COLUMNS, *(["variant"] if on_variants else [])]]
+    for r in counted:
         rows.append([r.student, f"{r.counted_score:g}", f"{r.raw_score:g}", f"{r.max_score:g}", f"{r.penalty:g}",
-                     r.late_seconds, r.attempt, r.submission_id, r.submitted_at.isoformat()])
+                     r.late_seconds, r.attempt, r.submission_id, r.submitted_at.isoformat(),
+                     *([r.variant or ""] if on_variants else [])])
     return f"{assignment.course.name}-assignment-{assignment.id}-grades.csv", csv_text(rows)
 
 

@@ -177,7 +177,8 @@ def counted_public(c: Counted):
     return CountedGradePublic(student=c.submission.student.name, submission_id=c.submission.id,
                               attempt=c.submission.attempt, submitted_at=c.submission.created_at,
                               late_seconds=c.submission.late_seconds or 0, raw_score=c.raw, max_score=c.max_total,
-                              penalty=c.penalty, counted_score=c.counted)
+                              penalty=c.penalty, counted_score=c.counted,
+                              variant=c.submission.variant.name if c.submission.variant is not None else None)
 
 
 def counted_for(*, session: Session, submission: Submission) -> tuple[Counted | None, int | None]:

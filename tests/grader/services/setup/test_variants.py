@@ -261,3 +261,39 @@ def test_a_pool_with_variants_dropped_is_drawn_further_from_its_seed_until_k_may
         assert new.submission_id is not None and new.position == 3
     again = api.client.post(f"/v1/assignments/{assignment_id}/variants/top-up", headers=api.as_("prof"))
     assert again.status_code == 409 and "still being measured" in again.text
+
+
+def test_counted_grades_name_each_students_variant_in_the_api_and_the_csv(api):
+    """The counted grades of an assignment on variants say which lab each counted attempt was graded on (a last
+    `variant` column in the CSV); an assignment without a pool keeps the columns it had."""
+    import csv
+    import io
+
+    from grader.core.db import new_session
+    from grader.core.models import Assignment, Grade, Submission
+
+    assignment_id, pool_id = _services_pool(api, k=2)
+    _all_kept_but(pool_id, "none")
+    with new_session() as session:
+        assignment = session.get(Assignment, assignment_id)
+        assignment.open_at -= timedelta(hours=2)
+        session.commit()
+    posted = api.client.post("/v1/submissions", json={"sheet": reference_sheet(), "assignment_id": assignment_id},
+                             headers=api.as_("alice"))
+    assert posted.status_code == 202, posted.text
+    with new_session() as session:  # graded as the worker would store it: the total is not the point here
+        submission = session.get(Submission, posted.json()["id"])
+        submission.status = "graded"
+        session.add(Grade(submission_id=submission.id, rubric_lesson="L03", rubric_version="2", rubric_hash="h",
+                          total=21, max_total=30, report={}))
+        session.commit()
+        variant = submission.variant.name
+    rows = api.client.get(f"/v1/assignments/{assignment_id}/grades", headers=api.as_("prof")).json()
+    assert [(r["student"], r["variant"]) for r in rows] == [("alice", variant)], rows
+    exported = api.client.get(f"/v1/assignments/{assignment_id}/grades.csv", headers=api.as_("prof"))
+    assert exported.status_code == 200, exported.text
+    (row,) = csv.DictReader(io.StringIO(exported.text))
+    assert (row["student"], row["counted_score"], row["variant"]) == ("alice", "21", variant)
+    plain = create(api, title="No pool").json()["id"]
+    header = api.client.get(f"/v1/assignments/{plain}/grades.csv", headers=api.as_("prof")).text.splitlines()[0]
+    assert "variant" not in header, header
