@@ -12,18 +12,44 @@ from grader.api.routes.setup import assignments, courses, variants
 from grader.api.routes.submissions import case_runs, files, review_requests, submit
 
 
+PREFIX = "/v1"
+_DECLARED: dict[tuple[str, str], frozenset[str] | None] = {}
+
+
+def _declared_query(request: Request) -> frozenset[str] | None:
+    """The query parameters the matched operation documents in the app's OpenAPI (what a client is told it may send),
+    worked out once per operation; None for a route the OpenAPI leaves out."""
+    route = request.scope.get("route")
+    path, method = getattr(route, "path", None), request.method.lower()
+    if path is None:
+        return None
+    if not path.startswith(PREFIX):  # the route as its own router declared it, before /v1 was put in front
+        path = PREFIX + path
+    if (path, method) not in _DECLARED:
+        operation = request.app.openapi().get("paths", {}).get(path, {}).get(method)
+        _DECLARED[(path, method)] = None if operation is None else frozenset(
+            p["name"] for p in operation.get("parameters", []) if p.get("in") == "query")
+    return _DECLARED[(path, method)]
+
+
 def single_query_values(request: Request) -> None:
-    """Every query parameter of the API is one value: a repeated one (?case=N1&case=N2) is refused with 422 naming
-    it, instead of silently keeping the last."""
+    """Every query parameter of the API is one the route declares, given once: a repeated one (?case=N1&case=N2) is
+    refused with 422 naming it, instead of silently keeping the last, and so is one the route does not know
+    (?clas=numeric_drift on the audit log would otherwise list every entry unfiltered)."""
     seen: set[str] = set()
+    declared = _declared_query(request)
     for key, _ in request.query_params.multi_items():
         if key in seen:
             raise RequestValidationError([{"loc": ("query", key), "msg": "given more than once; give one value",
                                            "type": "value_error"}])
+        if declared is not None and key not in declared:
+            known = ", ".join(sorted(declared)) or "none"
+            raise RequestValidationError([{"loc": ("query", key), "msg": f"unknown query parameter; this operation "
+                                           f"takes: {known}", "type": "value_error"}])
         seen.add(key)
 
 
-api_router = APIRouter(prefix="/v1", dependencies=[Depends(single_query_values)])
+api_router = APIRouter(prefix=PREFIX, dependencies=[Depends(single_query_values)])
 api_router.include_router(health.router)
 api_router.include_router(submit.router)
 api_router.include_router(files.router)

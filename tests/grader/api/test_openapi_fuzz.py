@@ -13,6 +13,7 @@ from collections import Counter
 
 import pytest
 import schemathesis
+from schemathesis.core.parameters import ParameterLocation
 from hypothesis import HealthCheck, settings
 
 from tests.factories import ROOT, audit_entry_for, reference_sheet
@@ -53,7 +54,12 @@ def seeded(api, monkeypatch):
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large,
                                  HealthCheck.function_scoped_fixture])
 def test_no_operation_answers_5xx_or_off_its_schema(case, seeded, caller):
-    response = case.call_and_validate(headers=seeded.as_(caller))
+    # The caller's token replaces the Authorization the generator made up (with-security-parameters), except in a case
+    # whose headers it generated invalid on purpose: that one goes out as generated. Replaced there, the header's
+    # mutation was undone while the check still counted it, and a request left valid read as invalid data "accepted"
+    # (GET /v1/audit/entries?backends=cpu,rocm, once the schema's other changes moved the generator's draws).
+    negative_headers = case.meta is not None and case.meta.is_negative_at(ParameterLocation.HEADER)
+    response = case.call_and_validate(headers={} if negative_headers else seeded.as_(caller))
     REQUESTS[(caller, case.operation.label, response.status_code // 100)] += 1
 
 
@@ -192,3 +198,16 @@ def test_valid_requests_succeed(world):
         if not 200 <= response.status_code < 300:
             refused.append(f"{method} {path} as {caller}: {response.status_code} {response.text[:200]}")
     assert not refused, "valid requests refused:\n" + "\n".join(refused)
+
+
+def test_an_unknown_or_repeated_query_parameter_is_refused_naming_it(seeded):
+    """A misspelt parameter is an error naming it and what the operation takes, not an answer that silently ignored
+    it (every attempt instead of each student's latest)."""
+    wrong = seeded.client.get("/v1/courses/l03/grades.csv?lates=true", headers=seeded.as_("prof"))
+    assert wrong.status_code == 422, wrong.text
+    (error,) = wrong.json()["errors"]
+    assert error["field"].endswith("lates") and "unknown query parameter" in error["rule"], error
+    assert "latest" in error["rule"], error  # the parameter the caller meant is among those named
+    twice = seeded.client.get("/v1/audit/entries?lesson=L03&lesson=L04", headers=seeded.as_("prof"))
+    assert twice.status_code == 422 and "more than once" in twice.text, twice.text
+    assert seeded.client.get("/v1/audit/entries?lesson=L03", headers=seeded.as_("prof")).status_code == 200

@@ -43,7 +43,8 @@ def get_entry(entry_id: RowId, session: SessionDep, user: StaffUser):
 
 @router.post("/case-runs/{case_run_id}/audit-reruns", response_model=CaseRunPublic,
              status_code=status.HTTP_202_ACCEPTED,
-             responses=errors(404, 409, 413, _409="Nothing to compare, or no worker listens"))
+             responses=errors(404, 409, 413, 429, _409="Nothing to compare, or no worker listens",
+                              _429="More audit re-runs than RATE_LIMIT_AUDIT_RERUNS allows (Retry-After says when)"))
 def request_rerun(case_run_id: RowId, request: AuditRerunRequest, session: SessionDep, user: StaffUser):
     """Re-measure a stored case run on another backend, precision or execution mode; the audit entry is written
     when it finishes. Refused at once (409) when no worker listens on the backend's queue."""

@@ -59,7 +59,8 @@ def list_overrides(submission: SubmissionDep, session: SessionDep, user: StaffUs
 
 @router.post("/submissions/{submission_id}/review-requests", status_code=status.HTTP_201_CREATED,
              response_model=ReviewRequestPublic,
-             responses=errors(403, 409, _409="Not graded yet, or this item already has an open request"))
+             responses=errors(403, 409, 429, _409="Not graded yet, or this item already has an open request",
+                              _429="More review requests than RATE_LIMIT_REVIEW_REQUESTS allows (Retry-After says when)"))
 def create_review_request(body: ReviewRequestCreate, submission: SubmissionDep, session: SessionDep,
                           user: CurrentUser):
     """Ask for a review of one item of your own graded submission shown to you (at most one open per item)."""
