@@ -17,14 +17,13 @@ import yaml
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-import rubric
 from rubric.scoring import LESSON_RUNS
 from grader.core.models import Assignment, CaseRun, Grade, PoolVariant, User, VariantPool
 from tests import services
-from tests.factories import reference_sheet
 from tests.integration.helpers import WAIT_LIMIT_S, at, submit_and_wait, wait_until
+from tools.harness.sheets import sheet_right_for
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.xdist_group("variants")]
 
 # Seed 391's variants differ pairwise in N4's timing, the table friction and the extension's timing. Measured on CPU,
 # its first fails the lesson's own check (N2's proxy above N1's: more substeps did not reduce it), the next two pass.
@@ -50,29 +49,6 @@ with new_session() as session:
     session.commit()
     variants.measure(session=session, pool=pool, user=prof, sender=dispatch)
 """
-
-
-def sheet_right_for(parameters: dict) -> dict:
-    """The reference sheet with the answers that depend on the lab's numbers (C1: N4's timing, C5: the low lane's
-    pair value, H1: the exercise's pair values, X1: the extension's timing) right for a variant with `parameters`,
-    and its exercise and extension configs made from that variant's baseline."""
-    from grader.services.setup.variants import measuring_sheet
-
-    variant = rubric.Variant(id="v0-0", parameters=parameters)
-    cases = variant.cases()
-    n4, n5 = cases["N4"], cases["N5"]
-    sheet = reference_sheet()
-    answers = sheet["answers"]
-    answers["C1"] = {"substep_dt": {"value": n4.dt / n4.substeps, "unit": "s"}, "samples": n4.n_steps,
-                     "internal_updates": n4.n_steps * n4.substeps}
-    answers["C5"] = {"pair_friction": parameters["table_friction"]}
-    high = parameters["high_lane_friction"]
-    answers["H1"] = {"baseline": {"low": parameters["table_friction"], "high": high},
-                     "modified": {"low": parameters["exercise_table_friction"], "high": high}}
-    answers["X1"] = {**answers["X1"], "substep_dt": {"value": round(n5.dt / n5.substeps * 1000, 6), "unit": "ms"},
-                     "samples": n5.n_steps, "internal_updates": n5.n_steps * n5.substeps}
-    sheet["configs"] = measuring_sheet(variant)["configs"]
-    return sheet
 
 
 def grade_offline(stack, sheet: dict, variant: dict, folder) -> dict:

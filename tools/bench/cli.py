@@ -18,10 +18,11 @@ from tools.bench import run
 from tools.bench.cases import BenchFailure
 from tools.harness.stack import ServiceUnavailable
 
-PARTS = ("cases", "submission", "figures", "class", "memory", "api", "reads", "bounded", "slots")
+PARTS = ("cases", "submission", "figures", "class", "memory", "api", "reads", "bounded", "slots", "variants")
 # --quick: the same measurements, smaller, in a few minutes.
-FULL = {"cases": "N1,N2,N3,N4,N5", "repeats": 3, "class_size": 200, "memory_cases": 500, "api_requests": 20}
-QUICK = {"cases": "N1,N3,N5", "repeats": 2, "class_size": 20, "memory_cases": 50, "api_requests": 10}
+FULL = {"cases": "N1,N2,N3,N4,N5", "repeats": 3, "class_size": 200, "memory_cases": 500, "api_requests": 20,
+        "variants": 16}
+QUICK = {"cases": "N1,N3,N5", "repeats": 2, "class_size": 20, "memory_cases": 50, "api_requests": 10, "variants": 4}
 
 
 def _parts(value: str) -> tuple[str, ...]:
@@ -40,6 +41,8 @@ def _parts(value: str) -> tuple[str, ...]:
 @click.option("--repeats", type=click.IntRange(1, 20), default=None, help="Repeats per case and per submission.")
 @click.option("--class-size", type=click.IntRange(1, 1000), default=None, help="Submissions in the class.")
 @click.option("--class-stacks", default="embedded,redis-pg", show_default=True)
+@click.option("--variants", "variants_k", type=click.IntRange(1, 64), default=None,
+              help="Variants drawn for the pool (part variants).")
 @click.option("--memory-cases", type=click.IntRange(1, 5000), default=None, help="Cases sampled for memory.")
 @click.option("--api-clients", type=click.IntRange(1, 500), default=50, show_default=True)
 @click.option("--api-stacks", default="embedded", show_default=True, help="Stacks the API load runs on.")
@@ -50,7 +53,7 @@ def _parts(value: str) -> tuple[str, ...]:
 @click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Where the figures go (default OUT/bench.json).")
 def bench(quick: bool, only: str, cases: str | None, repeats: int | None, class_size: int | None, class_stacks: str,
-          memory_cases: int | None, api_clients: int, api_stacks: str, api_think: str, out_dir: Path,
+          variants_k: int | None, memory_cases: int | None, api_clients: int, api_stacks: str, api_think: str, out_dir: Path,
           json_path: Path | None) -> None:
     """Measure, print a table per part with the targets met or missed, and write the figures as JSON."""
     size = QUICK if quick else FULL
@@ -61,7 +64,7 @@ def bench(quick: bool, only: str, cases: str | None, repeats: int | None, class_
         api_clients=api_clients, api_requests=size["api_requests"],
         api_stacks=[s.strip() for s in api_stacks.split(",")],
         api_think_s=tuple(float(t) for t in api_think.split(",")),
-        out_dir=out_dir, quick=quick)
+        out_dir=out_dir, quick=quick, variants_k=variants_k or size["variants"])
     json_path = json_path or out_dir / "bench.json"
     report = {"command": " ".join(["python", "-m", "tools.bench", *sys.argv[1:]]), "quick": quick,
               "started_utc": datetime.now(UTC).isoformat(timespec="seconds"), "host": platform.node(),

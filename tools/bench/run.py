@@ -18,6 +18,7 @@ from tools.bench.reads import format_reads, run_reads
 from tools.bench.slots import format_slots, run_slots
 from tools.harness.stack import service_stack
 from tools.bench.submission import bench_submission, reference_sheet, time_submission
+from tools.bench.variants import bench_variants, format_variants
 
 
 @dataclass
@@ -34,6 +35,7 @@ class BenchOptions:
     api_think_s: tuple[float, ...]
     out_dir: Path
     quick: bool = False
+    variants_k: int = 16
 
 
 def _graded_submission(stack) -> tuple[int, str]:
@@ -107,6 +109,12 @@ def run_bench(o: BenchOptions, *, save: Callable[[str, object], None], log: Call
         figures = run_slots(o.out_dir / "slots", o.repeats, log=log)
         save("slots", figures)
         out += [*format_slots(figures, tables.verdict), ""]
+    if "variants" in o.parts:
+        log(f"== per-student variants: a pool of {o.variants_k}, a class of {o.class_size} with and without (redis-pg)")
+        with service_stack("redis-pg", services, students=o.class_size, warm=True) as stack:
+            figures = bench_variants(stack, o.variants_k, o.class_size, o.repeats, log=log)
+        save("variants", figures)
+        out += [*format_variants(figures, tables.verdict), ""]
     if out and out[-1] == "":
         out.pop()
     return out + ["machine: shared (other jobs may run on the same cores); compare figures within this run only"]
