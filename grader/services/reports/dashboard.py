@@ -6,6 +6,10 @@ and the predictions against what was measured (H1, H4), and spreads the course's
 that produced them, and gives each assignment's counted grades. The charts (grader.pages.reports.dashboard) are drawn
 from this same data, never from a second query. At its top, what changed that a person must look at: the open review
 requests and the newest overrides (grader.services.submissions.review_requests, grader.services.submissions.overrides).
+For an assignment on per-student variants (issue 34): its copy evidence, and its counted sheets grouped by variant
+(n, mean total and each item's mean), so a harder variant shows. A pool's measuring submissions (the instructor's,
+grader.core.variants.measuring_submissions) are no student's work: they are left out of every count, list and
+distribution, and listed among the failed or stuck runs only as the pool's, named by variant.
 """
 
 from __future__ import annotations
@@ -21,11 +25,14 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session, selectinload
 
 from grader.core import lifecycle
-from grader.core.states import CaseRunState, SubmissionState
-from grader.core.models import Assignment, CaseRun, Course, Grade, Submission, User, utcnow
+from grader.core.states import CaseRunState, SubmissionState, VariantState
+from grader.core.models import (Assignment, CaseRun, CopyFlag, Course, Grade, PoolVariant, Submission, User,
+                                VariantPool, utcnow)
+from grader.core.variants import measuring_submissions
 from grader.core.schemas import CountedGradePublic, UtcDateTime
 from grader.services.identity.access import MAX_ID, require_instructor
 from grader.services.setup.assignments import counted_grades, counted_public
+from grader.services.setup.variants import FlagRow
 from grader.services.errors import Conflict, NotFound
 from grader.services.submissions import overrides as override_store
 from grader.services.submissions import review_requests
@@ -61,6 +68,7 @@ class RunProblem(BaseModel):
     delivery: int
     resendable: bool
     not_resendable_because: str | None = None
+    measures_variant: str | None = None  # a run of a pool's measuring submission: the variant it measures
 
 
 class PredictionRow(BaseModel):
@@ -141,6 +149,33 @@ class ScoreGroup(BaseModel):
     distribution: list[ScoreBin]
 
 
+class VariantScores(BaseModel):
+    """One variant of an assignment's pool: its students' counted sheets (n), their mean total, each item's mean."""
+
+    variant: str
+    state: str  # kept, or dropped (listed only while a student still has it)
+    n: int
+    mean: float | None
+    difference: float | None  # mean minus the assignment's mean over every variant's sheets
+    items: dict[str, float | None]  # item id -> mean score (inconclusive verdicts left out, as in the item analysis)
+
+
+class AssignmentVariants(BaseModel):
+    """An assignment on per-student variants: per variant its counted sheets, and the copy evidence of its
+    submissions (their current grades'; evidence for the instructor, never a change of grade)."""
+
+    id: int
+    title: str
+    page: str
+    n: int
+    mean: float | None
+    max_total: float | None
+    items: list[str]  # item ids in the rubric's order
+    item_points: dict[str, float]
+    variants: list[VariantScores]
+    flags: list[FlagRow]
+
+
 class Dashboard(BaseModel):
     course: str
     lesson: str | None
@@ -156,6 +191,7 @@ class Dashboard(BaseModel):
     score_groups: list[ScoreGroup] = []  # per assignment and for submissions outside one: never mixed maxima
     open_reviews: list[ReviewRequestPublic] = []  # oldest first: the queue at /courses/COURSE/reviews
     recent_overrides: list[OverridePublic] = []  # newest first, the ones in force
+    variants: list[AssignmentVariants] = []  # the course's assignments with a variant pool
 
 
 # --- grades: every Grade query of this module goes through current_grades / current_grade ------------------------
@@ -173,7 +209,9 @@ def latest_graded(session: Session, course: Course) -> list[tuple[Submission, Gr
     grades = current_grades(session, course_id=course.id)
     latest: dict[int, tuple[Submission, Grade]] = {}
     for s in session.scalars(select(Submission).where(Submission.course_id == course.id,
-                                                      Submission.id.in_(list(grades))).order_by(Submission.id)):
+                                                      Submission.id.in_(list(grades)),
+                                                      Submission.id.not_in(measuring_submissions()))
+                             .order_by(Submission.id)):
         latest[s.student_id] = (s, grades[s.id])
     return sorted(latest.values(), key=lambda sg: sg[0].student.name)
 
@@ -354,10 +392,19 @@ def graded_reports(session: Session, course: Course) -> list[tuple[Submission, A
     return [(s, GradeReport.model_validate(g.report)) for s, g in latest_graded(session, course)]
 
 
+def measured_variants(session: Session, course: Course) -> dict[int, str]:
+    """The course's measuring submissions: the variant each measures, by submission id."""
+    return dict(session.execute(select(PoolVariant.submission_id, PoolVariant.name)
+                                .join(Submission, Submission.id == PoolVariant.submission_id)
+                                .where(Submission.course_id == course.id)).all())
+
+
 def course_dashboard(*, session: Session, course: Course) -> Dashboard:
     now = utcnow()
-    submissions = session.scalars(select(Submission).where(Submission.course_id == course.id)
-                                  .options(selectinload(Submission.case_runs)).order_by(Submission.id)).all()
+    every = session.scalars(select(Submission).where(Submission.course_id == course.id)
+                            .options(selectinload(Submission.case_runs)).order_by(Submission.id)).all()
+    measuring = measured_variants(session, course)
+    submissions = [s for s in every if s.id not in measuring]  # the students' work (and staff's own tries)
     grades = current_grades(session, course_id=course.id)
     latest: dict[int, Submission] = {}
     attempts: Counter[int] = Counter()
@@ -370,7 +417,7 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
         if s.assignment_id is None and s.id in grades:
             latest_free[s.student_id] = grades[s.id]
     problems = []
-    for s in submissions:
+    for s in every:  # a pool's stuck run is the instructor's to re-send too
         for run in s.case_runs:
             reason = run.error if run.status == CaseRunState.FAILED else lifecycle.stuck_reason(run, now)
             if reason:
@@ -379,7 +426,7 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
                                            case=run.name, status=run.status, reason=reason,
                                            since=run.finished_at or run.started_at or run.queued_at,
                                            delivery=run.delivery, resendable=why_not is None,
-                                           not_resendable_because=why_not))
+                                           not_resendable_because=why_not, measures_variant=measuring.get(s.id)))
     return Dashboard(
         course=course.name,
         lesson=submissions[-1].lesson if submissions else None,
@@ -400,7 +447,45 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
                       review_requests.course_requests(session=session, course_id=course.id, state="open")],
         recent_overrides=[override_store.public(session, o)
                           for o in override_store.recent_overrides(session, course_id=course.id)],
+        variants=variant_scores(session, course, grades),
     )
+
+
+def variant_scores(session: Session, course: Course, grades: dict[int, Grade]) -> list[AssignmentVariants]:
+    """Each assignment of the course with a pool: its students' counted sheets grouped by their variant, and the
+    copy evidence stored against its submissions' current grades, newest first."""
+    out = []
+    pools = session.execute(select(Assignment, VariantPool).join(VariantPool, VariantPool.assignment_id == Assignment.id)
+                            .where(Assignment.course_id == course.id).order_by(Assignment.due_at, Assignment.id)).all()
+    for assignment, pool in pools:
+        counted = [c.submission for c in counted_grades(session=session, assignment=assignment)
+                   if c.submission.id in grades]
+        reports = {s.id: GradeReport.model_validate(grades[s.id].report) for s in counted}
+        overall = class_analysis(list(reports.values()))
+        rows = []
+        for variant in pool.variants:
+            mine = [reports[s.id] for s in counted if s.variant_id == variant.id]
+            if variant.state != VariantState.KEPT and not mine:
+                continue
+            stats = class_analysis(mine)
+            rows.append(VariantScores(
+                variant=variant.name, state=variant.state, n=stats.n_reports, mean=stats.mean_total,
+                difference=(stats.mean_total - overall.mean_total) if stats.mean_total is not None else None,
+                items={i.id: i.mean_score for i in stats.items}))
+        flags = session.scalars(select(CopyFlag).join(Submission, CopyFlag.submission_id == Submission.id)
+                                .join(Grade, CopyFlag.grade_id == Grade.id)
+                                .where(Submission.assignment_id == assignment.id, Grade.superseded_at.is_(None))
+                                .order_by(CopyFlag.id.desc())).all()
+        out.append(AssignmentVariants(
+            id=assignment.id, title=assignment.title, page=f"/assignments/{assignment.id}", n=overall.n_reports,
+            mean=overall.mean_total, max_total=overall.max_total, items=[i.id for i in overall.items],
+            item_points={i.id: i.points for i in overall.items}, variants=rows,
+            flags=[FlagRow(submission_id=f.submission_id, student=f.submission.student.name,
+                           own_variant=f.submission.variant.name if f.submission.variant else "",
+                           fits_variant=f.variant.name, items=f.items, own_expected=f.own_expected,
+                           other_expected=f.other_expected, summary=f.summary, created_at=f.created_at)
+                   for f in flags]))
+    return out
 
 
 def assignment_grades(session: Session, course: Course) -> list[AssignmentGrades]:

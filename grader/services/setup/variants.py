@@ -98,7 +98,8 @@ def _space_for(session: Session, assignment: Assignment):
     if space is None:
         raise Invalid("no variant space", [{"field": "assignment", "rule": (
             f"the course grades {assignment.lesson} under rubric v{book.version}, which has no reviewed variant "
-            "space (rubric/lessons/*-lab-variants-*.yaml): its students all work on the lesson's shipped cases")}])
+            "space (rubric/lessons/*-lab-variants-*.yaml): its students all work on the lesson's shipped cases")}],
+                      reason="no_space", facts={"lesson": assignment.lesson, "version": str(book.version)})
     return book, space
 
 
@@ -119,14 +120,17 @@ def generate(*, session: Session, assignment: Assignment, user: User, seed: int,
     if utcnow() >= assignment.open_at:
         raise Conflict("the assignment has opened", [{"field": "assignment", "rule": (
             f"a pool is generated before the assignment opens ({assignment.open_at:%Y-%m-%d %H:%M} UTC): students "
-            "already working on it would change lab")}])
+            "already working on it would change lab")}], reason="pool_opened",
+                       facts={"assignment": assignment.title, "at": assignment.open_at})
     existing = pool_of(session, assignment)
     if existing is not None:
         taken = session.scalar(select(func.count()).select_from(StudentVariant)
                                .where(StudentVariant.assignment_id == assignment.id))
         raise Conflict("the assignment has a pool", [{"field": "assignment", "rule": (
             f"assignment {assignment.id} has a pool already (seed {existing.seed}, {existing.k} variants"
-            + (f", {taken} students on them" if taken else "") + "); an assignment keeps one pool")}])
+            + (f", {taken} students on them" if taken else "") + "); an assignment keeps one pool")}],
+                       reason="pool_exists", facts={"assignment": assignment.title, "seed": existing.seed,
+                                                    "k": existing.k, "students": taken})
     book, space = _space_for(session, assignment)
     try:
         drawn = rubric.draw_pool(space, seed=seed, k=k)
@@ -244,18 +248,20 @@ def top_up(*, session: Session, assignment: Assignment, user: User, sender: Send
     if pool is None:
         raise NotFound(f"assignment {assignment.id} has no variant pool")
     kept = sum(v.state == VariantState.KEPT for v in pool.variants)
-    rule = None
+    rule = why = None  # `why` names the rule for a page to word it (grader/templates/setup/assignments.html)
     if pool.state != PoolState.READY:
-        rule = "its variants are still being measured: top up once every one is kept or dropped"
+        rule, why = "its variants are still being measured: top up once every one is kept or dropped", "measuring"
     elif kept >= pool.k:
-        rule = f"it keeps {kept} of the {pool.k} variants asked for already"
+        rule, why = f"it keeps {kept} of the {pool.k} variants asked for already", "full"
     elif utcnow() >= assignment.open_at:
-        rule = "the assignment has opened: students already working on it would change lab"
+        rule, why = "the assignment has opened: students already working on it would change lab", "opened"
     elif session.scalar(select(func.count()).select_from(StudentVariant)
                         .where(StudentVariant.assignment_id == assignment.id)):
-        rule = "students have variants of it already"
+        rule, why = "students have variants of it already", "assigned"
     if rule is not None:
-        raise Conflict("the pool is not drawn further", [{"field": "assignment", "rule": rule}])
+        raise Conflict("the pool is not drawn further", [{"field": "assignment", "rule": rule}],
+                       reason=f"top_up_{why}", facts={"assignment": assignment.title, "kept": kept, "k": pool.k,
+                                                      "at": assignment.open_at})
     space = rubric.load_variant_space(pool.lesson, pool.space_version)
     drawn_so_far = len(pool.variants)
     try:

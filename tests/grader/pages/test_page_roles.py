@@ -18,7 +18,7 @@ import yaml
 from sqlalchemy import select
 
 from tests.factories import reference_sheet, rubric_v3
-from tests.grader.services.setup.test_assignments import ROSTER, create
+from tests.grader.services.setup.test_assignments import ROSTER, at, create
 from tests.grader.services.test_integrity_gaps import checkpoint_report, graded
 
 PEOPLE = ("alice", "bob", "tess", "prof", "eve", None)  # None: nobody signed in
@@ -40,6 +40,8 @@ class World:
     done_run: int  # another, done (an audit re-run's source)
     regrade_hash: str  # the preview's content hash of v3, published for the regrade
     draft_form: dict = field(default_factory=dict)  # the rubric draft page's form, one tolerance changed
+    unpooled: int = 0  # an assignment opening in an hour, without a variant pool yet
+    pooled: int = 0  # one opening in an hour whose pool is ready with one of its two variants dropped (to top up)
 
 
 def _at(days: float) -> str:
@@ -75,7 +77,25 @@ def make_world(api) -> World:
     assert api.client.post("/v1/rubrics/versions", json=rubric_v3(), headers=api.as_("prof")).status_code == 201
     preview = api.client.get("/v1/courses/l03/regrade-preview?version=3", headers=api.as_("prof")).json()
     draft["version"] = "4"  # v3 is the one just published
-    return World(aid, sid, asked.json()["id"], failed, done, preview["content_hash"], draft)
+    return World(aid, sid, asked.json()["id"], failed, done, preview["content_hash"], draft, *_pool_assignments(api))
+
+
+def _pool_assignments(api) -> tuple[int, int]:
+    """Two assignments opening in an hour: one without a pool, one whose pool of two is ready, one variant dropped."""
+    from grader.core.db import new_session
+    from grader.core.models import Assignment, User
+    from grader.core.variants import decide
+    from grader.services.setup import variants
+
+    unpooled, pooled = (create(api, part="sheet", title=title, open_at=at(hours=1)).json()["id"]
+                        for title in ("Own lab", "Own lab, pooled"))
+    with new_session() as session:
+        prof = session.scalar(select(User).where(User.name == "prof"))
+        pool = variants.generate(session=session, assignment=session.get(Assignment, pooled), user=prof, seed=7, k=2)
+        for row, kept in zip(pool.variants, (True, False)):
+            decide(session, row, kept=kept, reason=None if kept else "lab check failed: substeps_reduce_proxy")
+        session.commit()
+    return unpooled, pooled
 
 
 def _iso(days: float) -> str:
@@ -127,6 +147,10 @@ ROUTES: dict[str, Route] = {
         None)),
     "/assignments/{assignment_id}/extensions/revoke": Route(INSTRUCTOR, lambda w: (
         f"/assignments/{w.assignment}/extensions/revoke", {"student": "bob"}, None)),
+    "/assignments/{assignment_id}/variants": Route(INSTRUCTOR, lambda w: (
+        f"/assignments/{w.unpooled}/variants", {"seed": "7", "k": "2"}, None)),
+    "/assignments/{assignment_id}/variants/top-up": Route(INSTRUCTOR, lambda w: (
+        f"/assignments/{w.pooled}/variants/top-up", {}, None)),
     "/assignments/{assignment_id}/edit": Route(INSTRUCTOR, lambda w: (
         f"/assignments/{w.assignment}/edit", assignment_form(title="Checkpoints, renamed", part="checkpoints"), None)),
     "/courses/{course}/reviews/{request_id}/answer": Route(INSTRUCTOR, lambda w: (
