@@ -47,9 +47,12 @@ def pytest_report_header(config):
 
 
 def pytest_collection_modifyitems(config, items):
-    """Under pytest-xdist (`make test`: --dist loadgroup), an integration module stays whole on one test process: its
-    tests share module fixtures (a second host, a private broker, a browser walk's pages) that are costly to build
-    twice. Every other test is scheduled on its own, wherever a process is free.
+    """Under pytest-xdist (`make test`: --dist loadgroup), a module with an `integration` or `slow` test stays whole on
+    one test process: its tests share module fixtures (a second host, a private broker, a browser walk's pages, runs
+    at 64-bit precision or in isolated processes) that are costly to build twice. Scheduled one by one, a module's
+    tests went to both processes or were split by other modules, and its module fixture was built again each time
+    (2026-11-27: tests/rubric/test_discrepancy's 64-bit runs twice, 81 s and 74 s; tests/worker/test_case_process's
+    runs twice, 41 s each). Every other test is scheduled on its own, wherever a process is free.
 
     `--shuffle-seed=N` reorders them first (issue 37: no test may depend on the order or on another test's rows).
     A module's tests stay together, so module fixtures are built once; every xdist process draws the same order from
@@ -61,8 +64,8 @@ def pytest_collection_modifyitems(config, items):
     groups by their number of tests instead, which puts single long tests (the container stack, the isolated Genesis
     runs) among the short ones."""
     seed = config.getoption("--shuffle-seed")
+    heavy = {item.path for item in items if item.get_closest_marker("integration") or item.get_closest_marker("slow")}
     if seed is None:
-        heavy = {item.path for item in items if item.get_closest_marker("integration") or item.get_closest_marker("slow")}
         items.sort(key=lambda item: item.path not in heavy)  # stable: the order within each part is kept
     else:
         import random
@@ -77,8 +80,9 @@ def pytest_collection_modifyitems(config, items):
             rng.shuffle(bucket)
         items[:] = [item for bucket in buckets for item in bucket]
     for item in items:
-        if "integration" in item.path.parts and not item.get_closest_marker("xdist_group"):
-            item.add_marker(pytest.mark.xdist_group(item.path.stem))
+        if item.path in heavy and not item.get_closest_marker("xdist_group"):
+            name = item.path.stem if "integration" in item.path.parts else str(item.path.relative_to(config.rootpath))
+            item.add_marker(pytest.mark.xdist_group(name))
 
 
 @pytest.fixture(scope="session")
