@@ -13,11 +13,11 @@ import pytest
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from grader.core.models import Assignment, Grade, User
+from grader.core.models import Grade
 from tests.integration.a11y import assert_accessible
 from tests.integration.helpers import SHOTS, at, submit_and_wait, wait_until
 from tests.integration.layout import assert_fits, measure
-from tests.integration.test_variants import sheet_right_for
+from tools.harness.sheets import open_with_variants, sheet_right_for
 
 pytestmark = [pytest.mark.integration, pytest.mark.xdist_group("variants")]
 COURSE = "l03-test"
@@ -88,18 +88,7 @@ def test_an_instructor_generates_a_pool_from_the_page_and_the_dashboard_shows_co
 
     # The assignment opens; each student's variant is fixed (as at their first visit), and both submit the sheet
     # right for alice's lab: bob's answers are alice's.
-    with Session(stack.engine) as session:
-        row = session.get(Assignment, aid)
-        row.open_at = row.open_at.replace(year=row.open_at.year - 1)
-        session.commit()
-        from grader.services.setup import student_variants
-
-        given = {}
-        for who in ("alice", "bob"):
-            student = session.scalar(select(User).where(User.name == who))
-            fixed = student_variants.variant_for(session=session, assignment=row, student=student)
-            given[who] = (fixed.name, fixed.parameters)
-        session.commit()
+    given = open_with_variants(stack.engine, aid, ["alice", "bob"])
     assert sorted(name for name, _ in given.values()) == KEPT
     sheet = sheet_right_for(given["alice"][1])
     submitted = {}

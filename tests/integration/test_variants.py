@@ -18,10 +18,10 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from rubric.scoring import LESSON_RUNS
-from grader.core.models import Assignment, CaseRun, Grade, PoolVariant, User, VariantPool
+from grader.core.models import CaseRun, Grade, PoolVariant, VariantPool
 from tests import services
 from tests.integration.helpers import WAIT_LIMIT_S, at, submit_and_wait, wait_until
-from tools.harness.sheets import sheet_right_for
+from tools.harness.sheets import open_with_variants, sheet_right_for
 
 pytestmark = [pytest.mark.integration, pytest.mark.xdist_group("variants")]
 
@@ -98,18 +98,8 @@ def test_a_measured_pool_grades_each_student_on_their_own_variant_and_flags_copi
           f"{measured_s:.1f} s")
 
     # The assignment opens; each student's variant is fixed at their first visit (grader.services.setup).
-    with Session(stack.engine) as session:
-        row = session.get(Assignment, assignment["id"])
-        row.open_at = row.open_at.replace(year=row.open_at.year - 1)
-        session.commit()
-        from grader.services.setup import student_variants
-
-        given = {}
-        for who in ("alice", "bob"):
-            student = session.scalar(select(User).where(User.name == who))
-            fixed = student_variants.variant_for(session=session, assignment=row, student=student)
-            given[who] = {"id": fixed.name, "parameters": fixed.parameters}
-        session.commit()
+    given = {who: {"id": name, "parameters": parameters}
+             for who, (name, parameters) in open_with_variants(stack.engine, assignment["id"], ["alice", "bob"]).items()}
     assert sorted((given["alice"]["id"], given["bob"]["id"])) == KEPT
 
     # Both submit the sheet that is right for alice's lab: bob's answers are alice's.

@@ -23,12 +23,12 @@ from datetime import UTC, datetime, timedelta
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from grader.core.models import Assignment, CaseRun, CopyFlag, Grade, PoolVariant, Submission, User, VariantPool
+from grader.core.models import CaseRun, CopyFlag, Grade, PoolVariant, Submission, VariantPool
 from tools.bench.cases import BenchFailure
 from tools.bench.classroom import wait_until_warm
 from tools.bench.stats import median
 from tools.bench.submission import WAIT_LIMIT_S, reference_sheet, time_submission
-from tools.harness.sheets import sheet_right_for
+from tools.harness.sheets import open_with_variants, sheet_right_for
 from tools.harness.stack import COURSE
 
 SEED = 391  # its first three variants: two kept, one dropped by the lab check (tests/integration/test_variants.py)
@@ -43,13 +43,6 @@ def _assignment(prof, title: str) -> int:
     return prof.create_assignment(COURSE, {"title": title, "part": "sheet", "open_at": _iso(timedelta(hours=1)),
                                            "due_at": _iso(timedelta(days=2)),
                                            "hard_close_at": _iso(timedelta(days=3))})["id"]
-
-
-def _open(engine, assignment_id: int) -> None:
-    with Session(engine) as session:
-        row = session.get(Assignment, assignment_id)
-        row.open_at = row.open_at - timedelta(days=1)
-        session.commit()
 
 
 def _pool(stack, prof, assignment_id: int, k: int, log) -> dict:
@@ -76,21 +69,6 @@ def _pool(stack, prof, assignment_id: int, k: int, log) -> dict:
     return {"k": k, "seed": SEED, "pool_s": seconds, "per_variant_s": seconds / k, "kept": pool["kept"],
             "dropped": len(dropped), "dropped_reasons": dropped, "case_runs": len(runs),
             "measured_runs": sum(1 for r in runs if r.reused_from_id is None)}
-
-
-def _fix_variants(engine, assignment_id: int, students: list[str]) -> dict[str, dict]:
-    """Each student's variant, fixed now as at their first view of the form (grader.services.setup)."""
-    from grader.services.setup import student_variants
-
-    given = {}
-    with Session(engine) as session:
-        assignment = session.get(Assignment, assignment_id)
-        for name in students:
-            student = session.scalar(select(User).where(User.name == name))
-            given[name] = student_variants.variant_for(session=session, assignment=assignment,
-                                                       student=student).parameters
-        session.commit()
-    return given
 
 
 def _class(stack, assignment_id: int, sheets: dict[str, dict], log) -> dict:
@@ -145,10 +123,9 @@ def bench_variants(stack, k: int, size: int, repeats: int, log: Callable[[str], 
     if not pool["kept"]:
         raise BenchFailure(f"pool of {k}: no variant kept ({pool['dropped_reasons']})")
     plain = _assignment(prof, "Bench without variants")
-    for assignment_id in (on_pool, plain):
-        _open(stack.engine, assignment_id)
     students = stack.students[:size]
-    given = _fix_variants(stack.engine, on_pool, students)
+    open_with_variants(stack.engine, plain, [])
+    given = {name: parameters for name, (_, parameters) in open_with_variants(stack.engine, on_pool, students).items()}
     log(f"== a class of {size} without variants")
     without = _class(stack, plain, {name: reference_sheet() for name in students}, log)
     log(f"  {without['total_s']:.1f} s, {without['runs_measured']} runs measured")

@@ -32,3 +32,28 @@ def sheet_right_for(parameters: dict) -> dict:
                      "samples": n5.n_steps, "internal_updates": n5.n_steps * n5.substeps}
     sheet["configs"] = measuring_sheet(variant)["configs"]
     return sheet
+
+
+def open_with_variants(engine, assignment_id: int, students: list[str]) -> dict[str, tuple[str, dict]]:
+    """Open an assignment whose pool is ready (its open_at moved a year back, as a pool is measured before its
+    assignment opens) and fix each named student's variant as at their first visit (grader.services.setup):
+    {student name: (variant id, parameters)}."""
+    from datetime import timedelta
+
+    from sqlalchemy import select
+    from sqlalchemy.orm import Session
+
+    from grader.core.models import Assignment, User
+    from grader.services.setup import student_variants
+
+    with Session(engine) as session:
+        assignment = session.get(Assignment, assignment_id)
+        assignment.open_at -= timedelta(days=365)
+        session.commit()
+        given = {}
+        for name in students:
+            student = session.scalar(select(User).where(User.name == name))
+            fixed = student_variants.variant_for(session=session, assignment=assignment, student=student)
+            given[name] = (fixed.name, fixed.parameters)
+        session.commit()
+    return given
