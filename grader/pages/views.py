@@ -223,7 +223,7 @@ def report_view(submission: Submission, grade: GradeView | None,
         view.items.append(ItemRow(
             id=item["id"], part=item["part"], kind=item["kind"], question=item["question"],
             prediction=item["prediction"], expected=item["expected"], measured=item.get("measured", ""),
-            backends=", ".join(f"{case} on {backend}" for case, backend in item.get("backends", {}).items()),
+            backends=list(item.get("backends", {}).items()),  # (case, backend) pairs, worded by the template
             tolerances=_tolerance_rows(item.get("tolerances", {}), rubric), verdict=item["verdict"],
             # the measured verdict, overridden or not; the verdict cell links an override (_item_review.html)
             verdict_label=VERDICT_LABEL.get(item["verdict"], item["verdict"]),
