@@ -3,13 +3,11 @@ Genesis runs): a student's N1 measured for real and a 64-bit twin of it whose he
 the worker's own audit; the review page flags the tolerances that difference exceeds and links the entry; an
 instructor signs the version off, drafts a new version (refused without a new rationale), publishes it, previews the
 regrade (which names the tolerance change behind each changed item) and commits it. Its own course, so the other
-page tests' class keeps its grades. Screenshots in /tmp/shots/review/ (or $REVIEW_SHOTS_DIR)."""
+page tests' class keeps its grades. Screenshots in review/ under the other browser tests' folder (out/screenshots/ or $SCREENSHOTS_DIR)."""
 
 from __future__ import annotations
 
-import os
 import re
-from pathlib import Path
 
 import pytest
 from sqlalchemy import select
@@ -18,12 +16,12 @@ from sqlalchemy.orm import Session
 from grader.core.models import CaseRun, Course, RubricVersion, User
 from tests.factories import reference_sheet
 from tests.grader.services.rubrics.test_tolerance_review import precision_twin
-from tests.integration.helpers import submit_and_wait
+from tests.integration.helpers import SHOTS as ALL_SHOTS, submit_and_wait
 from tests.integration.layout import assert_fits, pages_in_both_languages
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 COURSE = "review-class"
-SHOTS = Path(os.environ.get("REVIEW_SHOTS_DIR", "/tmp/shots/review"))
+SHOTS = ALL_SHOTS / "review"
 WIDER = "0.002"  # proxy_resolution 0.5 mm -> 2 mm: the proxy changes N1->N2 and N3->N4 (about 5 mm and 11 mm) stay
 # resolved, so A2 keeps its verdict; X2 and X3 read the same tolerance on N1 -> N5 (about 1.3 mm), which becomes
 # unresolved, so their verdicts can change
