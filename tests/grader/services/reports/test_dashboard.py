@@ -277,6 +277,23 @@ def test_the_charts_are_svg_for_the_courses_staff_only(api):
     page = api.client.get("/courses/l03/dashboard", headers=api.as_("prof")).text
     assert all(f'src="{url}"' in page for url in urls[:2])
 
+    # The charts speak the page's language: a Chinese reader's H4 and backend charts are drawn in Chinese, under an
+    # ETag of their own (the English copy a browser holds is never confirmed for the Chinese page)
+    zh = {"Accept-Language": "zh-CN,zh;q=0.9"}
+    h4_zh = api.client.get(urls[1], headers=api.as_("prof") | zh)
+    text = h4_zh.content.decode()
+    assert h4_zh.status_code == 200 and h4_zh.headers["etag"] != h4.headers["etag"]
+    assert "预测与实测对比" in text and "已审核的容差" in text and "持续停止距离" in text and "基准，低摩擦轨道" in text
+    assert "predicted against measured" not in text and "reviewed tolerance" not in text
+    assert api.client.get(urls[1], headers=api.as_("prof") | zh | {"If-None-Match": h4.headers["etag"]}
+                          ).status_code == 200
+    backends_zh = api.client.get(urls[2], headers=api.as_("prof") | zh).content.decode()
+    # (this course's grades carry no case run: both panels say so, in Chinese)
+    assert "各接触案例的穿透代理量" in backends_zh and "各摩擦轨道的停止距离" in backends_zh, backends_zh[-2000:]
+    assert "尚无测量结果" in backends_zh and "no measurement yet" not in backends_zh
+    page_zh = api.client.get("/courses/l03/dashboard", headers=api.as_("prof") | zh).text
+    assert "H4：持续停止距离 (m)" in page_zh and "<td>基准</td><td>低摩擦轨道</td>" in page_zh
+
 
 def test_only_the_current_grade_counts_a_superseded_one_stays_out(api):
     submission = _submit(api)
