@@ -29,7 +29,9 @@ CLASS = [{"stack": "embedded", "workers": 1, "slots": 2, "submissions": 20, "acc
                                "first_measured_s": 0.5, "last_measured_s": 44.0, "grading_wait_median_s": 0.25,
                                "grading_wait_max_s": 3.0,
                                "per_worker": {"1": {"measured": 11, "case_s": 16.0, "reused": 14},
-                                              "2": {"measured": 10, "case_s": 14.0, "reused": 16}}},
+                                              "2": {"measured": 10, "case_s": 14.0, "reused": 16}},
+                               "by_case": {"extension": {"measured": 11, "fresh_scenes": 10, "wall_s": 20.0,
+                                                         "build_s": 9.0, "steps_s": 8.5}}},
                       "tasks": [{"run_case_run": {"count": 25, "busy_s": 20.0},
                                  "grade_submission": {"count": 9, "busy_s": 4.5}}, {}],
                       "queues": {"samples": 100, "runs_peak": 40, "checks_peak": 12, "grades_peak": 3,
@@ -80,6 +82,7 @@ def test_tables_print_every_figure_beside_its_target():
     assert ("runs 171 of 19 submissions: 120 reused at admission, 30 reused in a worker, 21 measured (20 distinct, "
             "1 measured again concurrently), 0 failed") in text
     assert "by worker: worker 1 11 (16.0 s), worker 2 10 (14.0 s)" in text
+    assert "extension 11, 10 fresh, 20.0 = 9.0 + 8.5 + 2.5 s" in text
     assert ("worker 1 tasks: grade_submission 9 x 0.50 s = 4.5 s, run_case_run 25 x 0.80 s = 20.0 s; busy 24.5 s, "
             "45% of its 1 slot(s) until the last lab check") in text
     assert "worker 2 tasks: none; busy 0.0 s" in text
@@ -225,6 +228,7 @@ def test_a_tiny_class_on_two_real_workers_is_graded_by_both_and_every_post_is_ac
     assert sum("case slots warm" in line for line in lines) == 2  # each worker's own warm-up line
     runs = row["profile"]["runs"]
     assert runs["runs"] == 4 * 9 and runs["measured"] >= 1
+    assert sum(c["measured"] for c in runs["by_case"].values()) == runs["measured"]
     assert runs["reused_at_admission"] + runs["reused_in_worker"] + runs["measured"] + runs["failed_runs"] == 36
     tasks = row["profile"]["tasks"]
     assert len(tasks) == 2 and all(t.get("run_case_run", {}).get("count", 0) >= 1 for t in tasks)

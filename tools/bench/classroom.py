@@ -223,7 +223,8 @@ def _runs_profile(engine, ids: list[int], since: datetime, pids: dict[int, int])
     once), their case-process seconds, per worker; and how long the grades waited after the last run."""
     with Session(engine) as session:
         runs = session.execute(select(CaseRun.reused_from_id, CaseRun.started_at, CaseRun.finished_at, CaseRun.wall_s,
-                                      CaseRun.content_key, CaseRun.worker_pid, CaseRun.status)
+                                      CaseRun.content_key, CaseRun.worker_pid, CaseRun.status, CaseRun.name,
+                                      CaseRun.provenance)
                                .where(CaseRun.submission_id.in_(ids), CaseRun.purpose == "grading")).all()
         waits = session.execute(select(Submission.grading_at, Submission.graded_at)
                                 .where(Submission.id.in_(ids), Submission.graded_at.is_not(None))).all()
@@ -239,6 +240,15 @@ def _runs_profile(engine, ids: list[int], since: datetime, pids: dict[int, int])
             w["case_s"] += r.wall_s
         else:
             w["reused"] += 1
+    by_case: dict[str, dict] = {}
+    for r in measured:  # the case process's wall time: its scene's build (a new structure), stepping, the rest
+        timings, c = (r.provenance or {}).get("timings") or {}, by_case.setdefault(r.name, dict.fromkeys(
+            ("measured", "fresh_scenes", "wall_s", "build_s", "steps_s"), 0))
+        c["measured"] += 1
+        c["fresh_scenes"] += (r.provenance or {}).get("scene") == "fresh"
+        c["wall_s"] += r.wall_s
+        c["build_s"] += timings.get("build_s", 0.0)
+        c["steps_s"] += timings.get("steps_s", 0.0)
     grade_waits = sorted((b - a).total_seconds() for a, b in waits if a is not None)
     finished = [r.finished_at for r in measured if r.finished_at is not None]
     return {"runs": len(runs),
@@ -251,7 +261,8 @@ def _runs_profile(engine, ids: list[int], since: datetime, pids: dict[int, int])
             "last_measured_s": _seconds(max(finished, default=None), since),
             "grading_wait_median_s": grade_waits[len(grade_waits) // 2] if grade_waits else None,
             "grading_wait_max_s": grade_waits[-1] if grade_waits else None,
-            "per_worker": {str(k): v for k, v in sorted(per_worker.items())}}
+            "per_worker": {str(k): v for k, v in sorted(per_worker.items())},
+            "by_case": dict(sorted(by_case.items(), key=lambda kv: -kv[1]["wall_s"]))}
 
 
 def _tasks_profile(stack) -> list[dict]:

@@ -82,6 +82,10 @@ def _class_profile(f: dict) -> list[str]:
                      f"to {runs['last_measured_s']:.1f} s; by worker: " + ", ".join(
                          f"{'worker ' + k if k != '0' else 'unknown'} {w['measured']} ({w['case_s']:.1f} s)"
                          for k, w in runs["per_worker"].items()))
+    if by_case := runs.get("by_case"):
+        lines.append("    measured by case (runs, fresh scenes, wall = build + stepping + the rest): " + "; ".join(
+            f"{name} {c['measured']}, {c['fresh_scenes']} fresh, {c['wall_s']:.1f} = {c['build_s']:.1f} + "
+            f"{c['steps_s']:.1f} + {c['wall_s'] - c['build_s'] - c['steps_s']:.1f} s" for name, c in by_case.items()))
     if runs["grading_wait_median_s"] is not None:
         lines.append(f"    a grade stored {runs['grading_wait_median_s']:.2f} s (median; max "
                      f"{runs['grading_wait_max_s']:.2f} s) after its submission's last run finished")
