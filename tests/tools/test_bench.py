@@ -238,3 +238,55 @@ def test_a_tiny_class_on_two_real_workers_is_graded_by_both_and_every_post_is_ac
     text = "\n".join(tables.format_class([row]))
     assert "redis-pg         2     1     4       0      4      0    0" in text
     assert "200 sheets, 40 configs on two CPU workers <= 40 s (redis-pg): " in text and "from 4)" in text
+
+
+def test_a_post_answered_2xx_that_never_ends_is_counted_lost_and_a_refused_post_refused(tmp_path, monkeypatch):
+    """The class's accounting on a stack whose service answers as told: one sheet graded, one answered 202 and never
+    graded nor failed (lost, once nothing has been stored for the stall limit), one refused."""
+    import os
+    from types import SimpleNamespace
+
+    from sqlalchemy.orm import Session
+
+    from grader.core.db import make_engine, migrate
+    from grader.core.models import Submission, User, utcnow
+    from tools.bench import classroom
+    from tools.harness.stack import _people
+    from worker.warm_gate import OPENED
+
+    url = f"sqlite:///{tmp_path / 'grader.db'}"
+    migrate(url)
+    engine = make_engine(url)
+    _, names = _people(engine, 3)
+
+    class Service:
+        def __init__(self, who):
+            self.who = who
+
+        def submit(self, sheet):
+            if self.who == "s002":
+                raise RuntimeError("HTTP 429: too many submissions")
+            with Session(engine) as session:
+                user = session.query(User).filter_by(name=self.who).one()
+                row = Submission(course_id=user.course_id, student_id=user.id, lesson="L03", sheet=sheet,
+                                 status="graded" if self.who == "s000" else "running",
+                                 graded_at=utcnow() if self.who == "s000" else None)
+                session.add(row)
+                session.commit()
+                return {"id": row.id}
+
+    (tmp_path / "worker.log").write_text(f"[...] all 1 {OPENED} after 1.0 s: consuming cpu\n")
+    worker = SimpleNamespace(poll=lambda: None, pid=os.getpid(), returncode=None)
+    stack = SimpleNamespace(kind="redis-pg", engine=engine, students=names, env={"BROKER_URL": ""},
+                            data_dir=tmp_path, workers=[worker], worker=worker, client=Service,
+                            worker_log=lambda index: tmp_path / "worker.log")
+    monkeypatch.setattr(classroom, "STALL_LIMIT_S", 1.5)
+    lines = []
+    row = classroom.bench_class(stack, 3, log=lines.append, slots=1)
+    engine.dispose()
+    assert (row["submissions"], row["accepted"], row["refused"], row["graded"], row["failed"], row["lost"]) == \
+        (3, 2, 1, 1, 0, 1)
+    assert row["lost_ids"] == [2] and row["refused_examples"] == ["s002: HTTP 429: too many submissions"]
+    assert any(line.startswith("  LOST: 1 submission(s)") for line in lines)
+    text = "\n".join(tables.format_class([row]))
+    assert "  redis-pg         1     1     3       1      1      0    1" in text

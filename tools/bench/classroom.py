@@ -76,8 +76,8 @@ def slots_per_worker(workers: int, cores: int | None = None) -> int:
 
 
 WARM_LIMIT_S = WARM_UP_LIMIT_S  # tools.harness.processes: a warm-up of two slots took 305 s on a loaded host
-# No grade, failure or lab check stored for this long: the rest of the class is counted lost (never a claim about
-# speed: a stored grade resets it).
+# No run finished and no grade, failure or lab check stored for this long: the rest of the class is counted lost
+# (never a claim about speed: anything stored resets it).
 STALL_LIMIT_S = 300
 QUEUE_SAMPLE_S = 0.5
 TASK_LINE = re.compile(r"Task worker\.tasks\.(\w+)\[[^\]]*\] succeeded in ([0-9.eE+-]+)s")
@@ -202,16 +202,18 @@ def _post_all(stack, sheets: list[dict], started: float, log: Callable[[str], No
     return ids, refused
 
 
-def _states(engine, ids: list[int]) -> tuple[dict[int, str], int, datetime | None, datetime | None]:
+def _states(engine, ids: list[int]) -> tuple[dict[int, str], int, datetime | None, datetime | None, int]:
     """Of the posted submissions: each one's status, how many grades are still having their lab check evaluated,
-    the last grade stored and the last lab check stored."""
+    the last grade stored, the last lab check stored, and how many of their runs have finished."""
     with Session(engine) as session:
         status = dict(session.execute(select(Submission.id, Submission.status).where(Submission.id.in_(ids))).all())
+        runs_done = session.scalar(select(func.count()).select_from(CaseRun).where(
+            CaseRun.submission_id.in_(ids), CaseRun.status.in_(("done", "failed"))))
         last = session.scalar(select(func.max(Submission.graded_at)).where(Submission.id.in_(ids)))
         grades = select(Grade).where(Grade.submission_id.in_(ids), Grade.superseded_at.is_(None)).subquery()
         completing = session.scalar(select(func.count()).select_from(grades).where(grades.c.completed_at.is_(None)))
         completed = session.scalar(select(func.max(grades.c.completed_at)))
-    return status, completing, last, completed
+    return status, completing, last, completed, runs_done
 
 
 def _seconds(at: datetime | None, since: datetime) -> float | None:
@@ -303,17 +305,17 @@ def bench_class(stack, size: int, log: Callable[[str], None] = print, *, slots: 
         deadline = started + WAIT_LIMIT_S * max(1, size // 20)
         progress, progressed = None, time.monotonic()
         while True:
-            status, completing, last, completed = _states(stack.engine, ids)
+            status, completing, last, completed, runs_done = _states(stack.engine, ids)
             graded = sum(1 for s in status.values() if s == "graded")
             failed = sum(1 for s in status.values() if s == "failed")
             if graded + failed >= len(ids) and not completing:
                 break
             _check_workers(stack, f"with {graded} of {len(ids)} graded")
-            if (graded, failed, completing) != progress:
-                progress, progressed = (graded, failed, completing), time.monotonic()
+            if (graded, failed, completing, runs_done) != progress:
+                progress, progressed = (graded, failed, completing, runs_done), time.monotonic()
             if time.monotonic() > deadline or time.monotonic() - progressed > STALL_LIMIT_S:
-                log(f"  stopped waiting: {graded} graded, {failed} failed, {completing} completing, nothing stored "
-                    f"for {time.monotonic() - progressed:.0f} s")
+                log(f"  stopped waiting: {graded} graded, {failed} failed, {completing} completing, {runs_done} runs "
+                    f"finished; nothing stored for {time.monotonic() - progressed:.0f} s")
                 break
             log(f"  {graded} graded ({completing} completing), {failed} failed ({time.monotonic() - started:.0f} s)")
             time.sleep(5 if size > 50 else 1)
