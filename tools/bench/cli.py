@@ -67,8 +67,8 @@ def _counts(value: str) -> tuple[int, ...]:
 @click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Where the figures go (default OUT/bench.json).")
 def bench(quick: bool, only: str, cases: str | None, repeats: int | None, class_size: int | None, class_stacks: str,
-          class_workers: str, class_slots: int, variants_k: int | None, memory_cases: int | None, api_clients: int, api_stacks: str, api_think: str, out_dir: Path,
-          json_path: Path | None) -> None:
+          class_workers: str, class_slots: int, variants_k: int | None, memory_cases: int | None, api_clients: int,
+          api_stacks: str, api_think: str, out_dir: Path, json_path: Path | None) -> None:
     """Measure, print a table per part with the targets met or missed, and write the figures as JSON."""
     size = QUICK if quick else FULL
     options = run.BenchOptions(

@@ -98,6 +98,8 @@ def run_bench(o: BenchOptions, *, save: Callable[[str, object], None], log: Call
         rows = []
         for kind in o.class_stacks:
             # Several workers need a shared broker: the embedded stack (a filesystem broker) stays at one.
+            if kind == "embedded" and any(n != 1 for n in o.class_workers):
+                log("== the embedded stack runs one worker (its filesystem broker serves one): more only on redis-pg")
             for workers in (n for n in o.class_workers if kind != "embedded" or n == 1):
                 slots = o.class_slots or slots_per_worker(workers)
                 log(f"== a class of {o.class_size} ({kind}, {workers} CPU worker(s) x {slots} case slot(s))")
