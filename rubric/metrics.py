@@ -7,6 +7,7 @@ where a full hold interval stays below the declared speed.
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Annotated, Literal, Union
 
@@ -284,6 +285,12 @@ def case_metrics(spec: ContactCase | FrictionCase, arrays: dict[str, np.ndarray]
     return FrictionMetrics(case=spec.name, lanes={lane.name: lane_metrics(spec, arrays, lane.name) for lane in spec.lanes})
 
 
+@functools.cache
+def _metrics_adapter() -> TypeAdapter:
+    """Built once per process, as rubric.specs' case adapter (each TypeAdapter builds its validator anew)."""
+    return TypeAdapter(CaseMetrics)
+
+
 def parse_metrics(data: dict) -> ContactMetrics | FrictionMetrics:
     """Stored metrics (metrics.json or a database column) back into their model."""
-    return TypeAdapter(CaseMetrics).validate_python(data)
+    return _metrics_adapter().validate_python(data)

@@ -6,6 +6,7 @@ sample count, resting height) are computed properties, so a spec can never contr
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from typing import Annotated, Any, Literal, Union
@@ -272,11 +273,18 @@ def _box_overlap(table: Table, pos: tuple[float, float, float], size: tuple[floa
 CaseSpec = Annotated[Union[ContactCase, FrictionCase], Field(discriminator="kind")]
 
 
-def parse_case(data: dict) -> ContactCase | FrictionCase:
-    """Validate a case spec from JSON-like data; raises pydantic.ValidationError naming each bad field."""
+@functools.cache
+def _case_adapter():
+    """Built once per process: a TypeAdapter builds its validator from the type each time (about 6 ms here), and a
+    grade parses each of its runs' specs (issue 35: a class's 200 grades and lab checks spent seconds of CPU on it)."""
     from pydantic import TypeAdapter
 
-    return TypeAdapter(CaseSpec).validate_python(data)
+    return TypeAdapter(CaseSpec)
+
+
+def parse_case(data: dict) -> ContactCase | FrictionCase:
+    """Validate a case spec from JSON-like data; raises pydantic.ValidationError naming each bad field."""
+    return _case_adapter().validate_python(data)
 
 
 def describe_errors(error) -> list[str]:

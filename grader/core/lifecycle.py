@@ -12,6 +12,8 @@ import io
 import json
 import os
 import socket
+import threading
+from collections import OrderedDict
 from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any
@@ -355,6 +357,42 @@ def evidence_of(run: CaseRun) -> CaseEvidence | None:
     return session.get(CaseEvidence, run.reused_from_id or run.id) if session is not None else None
 
 
+# Decoded arrays of recently read evidence, per process, by (evidence row, when it was stored): a class's 200 grades
+# and lab checks read the same few dozen measurements again and again (each submission's 9 runs, twice), and reading
+# one meant fetching its .npz from the database and parsing it. A row stored again (a re-sent run's new try) has a new
+# stored_at, so a stale entry is never hit. Every reader gets arrays of its own (copies), as from np.load.
+_ARRAYS: OrderedDict[tuple[int, datetime], dict[str, np.ndarray]] = OrderedDict()
+_ARRAYS_LOCK = threading.Lock()  # an API process reads series on many threads
+ARRAYS_CACHED = 256  # entries (a lesson case's .npz is 30-50 kB)
+
+
+def _stored_arrays(run: CaseRun) -> dict[str, np.ndarray] | None:
+    """The arrays of the evidence a finished run stands on (`evidence_of`'s row), or None when it has none."""
+    session = object_session(run)
+    if run.status not in TERMINAL or session is None:
+        return None
+    evidence_id = run.reused_from_id or run.id
+    stored_at = session.scalar(select(CaseEvidence.stored_at).where(CaseEvidence.case_run_id == evidence_id))
+    if stored_at is None:
+        return None
+    key = (evidence_id, stored_at)
+    with _ARRAYS_LOCK:
+        cached = _ARRAYS.get(key)
+        if cached is not None:
+            _ARRAYS.move_to_end(key)
+    if cached is None:
+        data = session.scalar(select(CaseEvidence.arrays).where(CaseEvidence.case_run_id == evidence_id))
+        if data is None:
+            return None
+        with np.load(io.BytesIO(data), allow_pickle=False) as npz:
+            cached = {name: npz[name] for name in npz.files}
+        with _ARRAYS_LOCK:
+            _ARRAYS[key] = cached
+            while len(_ARRAYS) > ARRAYS_CACHED:
+                _ARRAYS.popitem(last=False)
+    return {name: array.copy() for name, array in cached.items()}
+
+
 def stored_result(run: CaseRun):
     """The CaseResult a case run stands for, read back from the database: its provenance, metrics and the .npz
     bytes of its evidence (`evidence_of`); no file is read. Raises LookupError for an ok run without evidence."""
@@ -363,11 +401,9 @@ def stored_result(run: CaseRun):
     if run.status != CaseRunState.DONE or run.result_status != "ok":
         return CaseResult(spec=spec, status=run.result_status or "failed", provenance=provenance,
                           error=run.error or f"case run ended {run.status}", out_dir=run.artifact_dir)
-    evidence = evidence_of(run)
-    if evidence is None or evidence.arrays is None:
+    arrays = _stored_arrays(run)
+    if arrays is None:
         raise LookupError(f"case run {run.id} ({run.name}) has no stored arrays")
-    with np.load(io.BytesIO(evidence.arrays), allow_pickle=False) as npz:
-        arrays = {name: npz[name] for name in npz.files}
     metrics = parse_metrics(run.metrics) if run.metrics else None
     return CaseResult(spec=spec, status="ok", arrays=arrays, provenance=provenance, metrics=metrics,
                       out_dir=run.artifact_dir, wall_s=run.wall_s or 0.0)

@@ -14,7 +14,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from rubric.governance import RubricGovernanceError, publish_version, rubric_changes
-from rubric.rubrics import load_rubric, parse_rubric, rubric_versions, version_key
+from rubric.rubrics import load_rubric, parse_rubric, rubric_versions, shipped_hash, version_key
 
 from grader.core.models import Grade, Regrade, RubricVersion, User
 
@@ -46,10 +46,10 @@ def sync_shipped(session: Session, lesson: str) -> list[RubricVersion]:
     rows = {r.version: r for r in session.scalars(select(RubricVersion).where(RubricVersion.lesson == lesson,
                                                                               RubricVersion.course_id.is_(None)))}
     for version in rubric_versions(lesson):
-        shipped = load_rubric(lesson, version)
         row = rows.get(version)
-        if row is not None and row.content_hash == shipped.content_hash:
+        if row is not None and row.content_hash == shipped_hash(lesson, version):
             continue
+        shipped = load_rubric(lesson, version)
         if row is not None:
             publish_version(shipped, [_row_rubric(r) for r in rows.values()], used_versions(session, lesson))
             row.content, row.content_hash = shipped.model_dump(mode="json"), shipped.content_hash

@@ -33,6 +33,16 @@ def _parts(value: str) -> tuple[str, ...]:
     return parts
 
 
+def _counts(value: str) -> tuple[int, ...]:
+    try:
+        counts = tuple(int(p) for p in value.split(",") if p.strip())
+    except ValueError:
+        counts = ()
+    if not counts or any(not 1 <= n <= 16 for n in counts):
+        raise click.BadParameter(f"{value!r}: comma-separated worker counts, each 1-16", param_hint="--class-workers")
+    return counts
+
+
 # -h as well as --help, as under the `grader` group it came from.
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
 @click.option("--quick", is_flag=True, help="Smaller everything, a few minutes: " + json.dumps(QUICK))
@@ -41,6 +51,10 @@ def _parts(value: str) -> tuple[str, ...]:
 @click.option("--repeats", type=click.IntRange(1, 20), default=None, help="Repeats per case and per submission.")
 @click.option("--class-size", type=click.IntRange(1, 1000), default=None, help="Submissions in the class.")
 @click.option("--class-stacks", default="embedded,redis-pg", show_default=True)
+@click.option("--class-workers", default="1,2", show_default=True,
+              help="CPU worker counts the class runs on, one after the other (redis-pg; embedded runs 1 only).")
+@click.option("--class-slots", type=click.IntRange(0, 64), default=0, show_default=True,
+              help="Case slots per worker in the class; 0: the host's cores split among the workers (at least 1).")
 @click.option("--variants", "variants_k", type=click.IntRange(1, 64), default=None,
               help="Variants drawn for the pool (part variants).")
 @click.option("--memory-cases", type=click.IntRange(1, 5000), default=None, help="Cases sampled for memory.")
@@ -53,8 +67,8 @@ def _parts(value: str) -> tuple[str, ...]:
 @click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Where the figures go (default OUT/bench.json).")
 def bench(quick: bool, only: str, cases: str | None, repeats: int | None, class_size: int | None, class_stacks: str,
-          variants_k: int | None, memory_cases: int | None, api_clients: int, api_stacks: str, api_think: str, out_dir: Path,
-          json_path: Path | None) -> None:
+          class_workers: str, class_slots: int, variants_k: int | None, memory_cases: int | None, api_clients: int,
+          api_stacks: str, api_think: str, out_dir: Path, json_path: Path | None) -> None:
     """Measure, print a table per part with the targets met or missed, and write the figures as JSON."""
     size = QUICK if quick else FULL
     options = run.BenchOptions(
@@ -64,7 +78,8 @@ def bench(quick: bool, only: str, cases: str | None, repeats: int | None, class_
         api_clients=api_clients, api_requests=size["api_requests"],
         api_stacks=[s.strip() for s in api_stacks.split(",")],
         api_think_s=tuple(float(t) for t in api_think.split(",")),
-        out_dir=out_dir, quick=quick, variants_k=variants_k or size["variants"])
+        out_dir=out_dir, quick=quick, variants_k=variants_k or size["variants"],
+        class_workers=_counts(class_workers), class_slots=class_slots)
     json_path = json_path or out_dir / "bench.json"
     report = {"command": " ".join(["python", "-m", "tools.bench", *sys.argv[1:]]), "quick": quick,
               "started_utc": datetime.now(UTC).isoformat(timespec="seconds"), "host": platform.node(),

@@ -10,7 +10,7 @@ from pathlib import Path
 from tools.bench import tables
 from tools.bench.bounded import bench_bounded, format_bounded
 from tools.bench.cases import bench_cases, format_cases
-from tools.bench.classroom import bench_class
+from tools.bench.classroom import bench_class, slots_per_worker
 from tools.bench.figures import bench_figures
 from tools.bench.load import bench_api
 from tools.bench.memory import bench_memory
@@ -36,6 +36,8 @@ class BenchOptions:
     out_dir: Path
     quick: bool = False
     variants_k: int = 16
+    class_workers: tuple[int, ...] = (1, 2)
+    class_slots: int = 0  # case slots per worker in the class; 0: classroom.slots_per_worker
 
 
 def _graded_submission(stack) -> tuple[int, str]:
@@ -95,11 +97,17 @@ def run_bench(o: BenchOptions, *, save: Callable[[str, object], None], log: Call
     if "class" in o.parts:
         rows = []
         for kind in o.class_stacks:
-            log(f"== a class of {o.class_size} ({kind})")
-            with service_stack(kind, services, students=o.class_size) as stack:
-                rows.append(bench_class(stack, o.class_size, log=log))
-            save("class", rows)
-        out += [*tables.format_class(rows), ""]
+            # Several workers need a shared broker: the embedded stack (a filesystem broker) stays at one.
+            if kind == "embedded" and any(n != 1 for n in o.class_workers):
+                log("== the embedded stack runs one worker (its filesystem broker serves one): more only on redis-pg")
+            for workers in (n for n in o.class_workers if kind != "embedded" or n == 1):
+                slots = o.class_slots or slots_per_worker(workers)
+                log(f"== a class of {o.class_size} ({kind}, {workers} CPU worker(s) x {slots} case slot(s))")
+                with service_stack(kind, services, students=o.class_size, workers=workers,
+                                   worker_env={"WORKER_CONCURRENCY": str(slots)}) as stack:
+                    rows.append(bench_class(stack, o.class_size, log=log, slots=slots))
+                save("class", rows)
+        out += [*tables.format_class(rows, explicit_slots=bool(o.class_slots)), ""]
     if "bounded" in o.parts:
         log("== the worst sheet the caps admit: check, save, export, import, submit (in-process)")
         figures = bench_bounded(o.out_dir / "bounded", max(o.repeats, 5), log=log)

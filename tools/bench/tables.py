@@ -13,6 +13,8 @@ TARGETS = {
     "submission_cold_s": (5.0, "s"),
     "submission_reused_s": (0.5, "s"),
     "class_s": (90.0, "s"),
+    # issue 35 item 4: the same class on two CPU workers (separate Celery worker processes, one broker)
+    "class_two_workers_s": (40.0, "s"),
     "memory_max_mb": (1536.0, "MB"),
     "memory_growth_pct": (5.0, "%"),
     "api_p95_ms": (50.0, "ms"),
@@ -57,25 +59,99 @@ def format_submission(f: dict) -> list[str]:
             f"  cold / reused                  {f['cold_s'] / f['reused_s']:8.1f} x"]
 
 
-def format_class(rows: list[dict]) -> list[str]:
-    lines = ["a class on one CPU worker (first POST to last stored grade):",
-             f"  {'stack':10s} {'subs':>5s} {'graded':>6s} {'failed':>6s} {'configs':>7s} {'2-factor':>8s} "
-             f"{'posting':>8s} {'total':>8s} {'per sub':>8s}  target (200 in 90 s)"]
+def _label(f: dict) -> str:
+    workers = f.get("workers", 1)
+    return f"{f['stack']}, {workers} worker{'s' if workers > 1 else ''}"
+
+
+def _class_profile(f: dict) -> list[str]:
+    """Where a class's time went: posting, the runs (reused or measured, in case processes), the grades' wait, each
+    worker's tasks, the broker's queues."""
+    p = f.get("profile")
+    if not p:
+        return []
+    runs, lines = p["runs"], [f"  where the time went, {_label(f)} (s after the first POST):"]
+    accepted = f.get("accepted", f["submissions"])
+    lines.append(f"    posting {f['posting_s']:.1f} s for {f['submissions']} POSTs "
+                 f"({1000 * f['posting_s'] / max(1, f['submissions']):.0f} ms each, one client after another)")
+    lines.append(f"    runs {runs['runs']} of {accepted} submissions: {runs['reused_at_admission']} reused at admission, "
+                 f"{runs['reused_in_worker']} reused in a worker, {runs['measured']} measured ({runs['measured_keys']} "
+                 f"distinct, {runs['measured_twice']} measured again concurrently), {runs['failed_runs']} failed")
+    if runs["measured"]:
+        lines.append(f"    measuring {runs['case_s']:.1f} s in case processes, from {runs['first_measured_s']:.1f} "
+                     f"to {runs['last_measured_s']:.1f} s; by worker: " + ", ".join(
+                         f"{'worker ' + k if k != '0' else 'unknown'} {w['measured']} ({w['case_s']:.1f} s)"
+                         for k, w in runs["per_worker"].items()))
+    if by_case := runs.get("by_case"):
+        lines.append("    measured by case (runs, fresh scenes, wall = build + stepping + the rest): " + "; ".join(
+            f"{name} {c['measured']}, {c['fresh_scenes']} fresh, {c['wall_s']:.1f} = {c['build_s']:.1f} + "
+            f"{c['steps_s']:.1f} + {c['wall_s'] - c['build_s'] - c['steps_s']:.1f} s" for name, c in by_case.items()))
+    if runs["grading_wait_median_s"] is not None:
+        lines.append(f"    a grade stored {runs['grading_wait_median_s']:.2f} s (median; max "
+                     f"{runs['grading_wait_max_s']:.2f} s) after its submission's last run finished")
+    for index, tasks in enumerate(p["tasks"]):
+        parts = [f"{name} {t['count']} x {t['busy_s'] / t['count']:.2f} s = {t['busy_s']:.1f} s"
+                 for name, t in sorted(tasks.items())]
+        busy = sum(t["busy_s"] for t in tasks.values())
+        slots = f.get("slots")
+        window = f.get("complete_s") or f["total_s"]
+        share = f", {busy / (slots * window):.0%} of its {slots} slot(s) until the last lab check" \
+            if slots and window and window > 0 else ""
+        lines.append(f"    worker {index + 1} tasks: {', '.join(parts) or 'none'}; busy {busy:.1f} s{share}")
+    if q := p.get("queues"):
+        waited = f"{q['runs_last_waiting_s']:.1f} s" if q["runs_last_waiting_s"] is not None else "never"
+        lines.append(f"    broker queues (sampled {q['samples']} times): at most {q['runs_peak']} runs, "
+                     f"{q['grades_peak']} grades, {q['checks_peak']} lab checks waiting; runs last waiting at {waited}")
+    return lines
+
+
+def format_class(rows: list[dict], *, explicit_slots: bool = False) -> list[str]:
+    lines = ["a class at the deadline, first POST to last stored grade (lost: answered 2xx, yet neither graded nor "
+             "failed):",
+             f"  {'stack':10s} {'workers':>7s} {'slots':>5s} {'subs':>5s} {'refused':>7s} {'graded':>6s} "
+             f"{'failed':>6s} {'lost':>4s} {'configs':>7s} {'2-factor':>8s} {'posting':>8s} {'total':>8s} "
+             f"{'per sub':>8s}  target (200 in 90 s)"]
     for f in rows:
         projected = f["per_submission_s"] * CLASS_TARGET_SIZE
         partial = "" if f["submissions"] >= CLASS_TARGET_SIZE else \
             f"projected to 200: {projected:.0f} s from {f['submissions']}"
-        lines.append(f"  {f['stack']:10s} {f['submissions']:5d} {f['graded']:6d} {f['failed']:6d} "
+        slots = f"{f['slots']:5d}" if f.get("slots") else f"{'-':>5s}"
+        lines.append(f"  {f['stack']:10s} {f.get('workers', 1):7d} {slots} {f['submissions']:5d} "
+                     f"{f.get('refused', 0):7d} {f['graded']:6d} {f['failed']:6d} {f.get('lost', 0):4d} "
                      f"{f['distinct_configs']:7d} {f['two_factor']:8d} {f['posting_s']:7.1f}s {f['total_s']:7.1f}s "
                      f"{f['per_submission_s']:7.2f}s  {verdict('class_s', projected, partial=partial)}")
-    lines += [f"  {f['stack']:10s} last lab check stored {f['complete_s']:.1f} s after the first POST"
+    if any(f.get("slots") for f in rows):
+        lines.append("  slots: case slots per worker, " + (
+            "as given (--class-slots)" if explicit_slots else
+            "the host's cores split among the workers (one warm case process per core in all: a case steps on one "
+            "thread, so more slots than cores would only share them)"))
+    lines += [f"  {_label(f)}: last lab check stored {f['complete_s']:.1f} s after the first POST"
               for f in rows if f.get("complete_s") is not None]
-    lines += [f"  {f['stack']:10s} waited {f['warm_up_wait_s']:.1f} s after start for the case process to warm up"
+    lines += [f"  {_label(f)}: waited {f['warm_up_wait_s']:.1f} s after start for the case slots to warm up"
               if f.get("warm_up_wait_s") is not None else
-              f"  {f['stack']:10s} warm-up off: the case process started on the first case"
+              f"  {_label(f)}: warm-up off, the case process started on the first case"
               for f in rows if "warm_up_wait_s" in f]
-    if len(rows) == 2:
-        lines.append(f"  {rows[0]['stack']} / {rows[1]['stack']}: {rows[0]['total_s'] / rows[1]['total_s']:.2f}x")
+    ones = {f["stack"]: f for f in rows if f.get("workers", 1) == 1}
+    for f in rows:
+        one = ones.get(f["stack"])
+        if f.get("workers", 1) > 1 and one is not None:
+            lines.append(f"  {f['stack']}: {f['workers']} workers / 1 worker: {f['total_s'] / one['total_s']:.2f}x "
+                         f"({f['total_s']:.1f} s against {one['total_s']:.1f} s)")
+    if len(ones) == 2:
+        a, b = ones.values()
+        lines.append(f"  {a['stack']} / {b['stack']} (1 worker): {a['total_s'] / b['total_s']:.2f}x")
+    for f in rows:
+        lines += _class_profile(f)
+    two = [f for f in rows if f.get("workers", 1) == 2]
+    for f in two:
+        projected = f["per_submission_s"] * CLASS_TARGET_SIZE
+        partial = "" if f["submissions"] >= CLASS_TARGET_SIZE else \
+            f"projected to 200: {projected:.0f} s from {f['submissions']}"
+        lost = f" ({f['lost']} LOST)" if f.get("lost") else ""
+        lines.append(f"  200 sheets, 40 configs on two CPU workers <= 40 s ({f['stack']}): "
+                     f"{verdict('class_two_workers_s', projected, partial=partial)}{lost}")
+    if not two:
+        lines.append("  200 sheets, 40 configs on two CPU workers <= 40 s: not run (--class-workers without 2)")
     return lines
 
 

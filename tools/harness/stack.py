@@ -1,5 +1,6 @@
-"""A whole service stack as real processes on loopback: the API and one CPU Celery worker, over the embedded default
-(SQLite + filesystem broker) or Redis + PostgreSQL, with a course of students and their tokens. The one harness the
+"""A whole service stack as real processes on loopback: the API and one CPU Celery worker (or several, on Redis +
+PostgreSQL), over the embedded default (SQLite + filesystem broker) or Redis + PostgreSQL, with a course of students
+and their tokens. The one harness the
 benchmark (tools.bench) and the integration tests (tests/integration/conftest.py's `stack`) both start."""
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from grader.client import Client
 from grader.core.db import make_engine, migrate
 from grader.services.identity import accounts
 
-from tools.harness.processes import ROOT, free_port, start_api, start_worker, stop
+from tools.harness.processes import WARM_UP_LIMIT_S, ROOT, free_port, start_api, start_worker, stop, wait_for
 
 KINDS = ("embedded", "redis-pg")
 PG_ADMIN_URL = os.environ.get("BENCH_POSTGRES_URL", "postgresql+psycopg2://postgres@127.0.0.1:5432/test")
@@ -32,8 +33,9 @@ class ServiceUnavailable(RuntimeError):
 
 
 @contextlib.contextmanager
-def postgres_database(admin_url: str = PG_ADMIN_URL, *, prefix: str = "grader_bench") -> Iterator[str]:
-    """A uniquely named database on admin_url's server, dropped afterwards; yields its URL."""
+def postgres_database(admin_url: str | None = None, *, prefix: str = "grader_bench") -> Iterator[str]:
+    """A uniquely named database on admin_url's server (default PG_ADMIN_URL), dropped afterwards; yields its URL."""
+    admin_url = admin_url or PG_ADMIN_URL
     name = f"{prefix}_{uuid.uuid4().hex[:12]}"
     admin = create_engine(admin_url, isolation_level="AUTOCOMMIT")
     try:
@@ -51,8 +53,9 @@ def postgres_database(admin_url: str = PG_ADMIN_URL, *, prefix: str = "grader_be
 
 
 @contextlib.contextmanager
-def redis_db(url: str = REDIS_URL) -> Iterator[str]:
-    """The Redis db at url, flushed before and after (the benchmark owns it while it runs)."""
+def redis_db(url: str | None = None) -> Iterator[str]:
+    """The Redis db at url (default REDIS_URL), flushed before and after (the benchmark owns it while it runs)."""
+    url = url or REDIS_URL
     client = redis.Redis.from_url(url)
     try:
         client.ping()
@@ -81,6 +84,14 @@ class Stack:
     api: object
     students: list[str] = field(default_factory=list)
     logs: Path | None = None  # where the processes' logs are, when not in data_dir
+    workers: list = field(default_factory=list)  # every CPU worker process, `worker` first
+
+    def __post_init__(self):
+        self.workers = self.workers or [self.worker]
+
+    def worker_log(self, index: int) -> Path:
+        """The log of the index-th worker (0: `worker`)."""
+        return (self.logs or self.data_dir) / worker_log_name(index)
 
     def client(self, who: str = "alice", *, timeout: float = 120):
         return Client(self.url, self.tokens[who], timeout=timeout)
@@ -98,22 +109,33 @@ def _people(engine, students: int) -> tuple[dict[str, str], list[str]]:
     return tokens, names
 
 
+def worker_log_name(index: int) -> str:
+    """worker.log for the first worker (as ever), worker-2.log, worker-3.log... for the others."""
+    return "worker.log" if index == 0 else f"worker-{index + 1}.log"
+
+
 @contextlib.contextmanager
 def service_stack(kind: str, folder: Path, *, students: int = 1, worker_env: dict | None = None,
-                  warm: bool = False) -> Iterator[Stack]:
-    """Start the API and one CPU worker (`cpu,grade` queues) over `kind`'s database and broker; stop them after.
-    `worker_env` adds to the environment of both (WORKER_CONCURRENCY=1); `warm`: yielded once the worker's case
-    slots are warm (worker.warm_gate), not as soon as it is ready."""
+                  warm: bool = False, workers: int = 1, redis_url: str | None = None,
+                  postgres_url: str | None = None) -> Iterator[Stack]:
+    """Start the API and `workers` CPU workers (`cpu,grade` queues, separate Celery worker processes, each with its
+    own case slots) over `kind`'s database and broker; stop them after. Several workers need a shared broker:
+    redis-pg only (the embedded default is one worker on a filesystem broker, without heartbeats).
+    `worker_env` adds to the environment of all (WORKER_CONCURRENCY=1: the slots of each worker); `warm`: yielded
+    once every worker's case slots are warm (worker.warm_gate), not as soon as it is ready. `redis_url` and
+    `postgres_url` (the server's admin URL) replace BENCH_REDIS_URL and BENCH_POSTGRES_URL (a test's own)."""
     if kind not in KINDS:
         raise ValueError(f"unknown stack {kind!r}; one of {', '.join(KINDS)}")
+    if workers < 1 or (kind == "embedded" and workers > 1):
+        raise ValueError(f"{workers} workers on {kind}: the embedded stack runs one worker, redis-pg one or more")
     data_dir = (folder / f"{kind}-{uuid.uuid4().hex[:6]}").absolute()
     data_dir.mkdir(parents=True)
     with contextlib.ExitStack() as cleanup:
         if kind == "embedded":
             database_url, broker_url = f"sqlite:///{data_dir / 'grader.db'}", ""  # "" derives the filesystem broker
         else:
-            database_url = cleanup.enter_context(postgres_database())
-            broker_url = cleanup.enter_context(redis_db())
+            database_url = cleanup.enter_context(postgres_database(postgres_url))
+            broker_url = cleanup.enter_context(redis_db(redis_url))
         migrate(database_url)
         engine = make_engine(database_url)
         cleanup.callback(engine.dispose)
@@ -127,7 +149,17 @@ def service_stack(kind: str, folder: Path, *, students: int = 1, worker_env: dic
         port = free_port()
         api = start_api(env, port, data_dir / "api.log")
         cleanup.callback(stop, api)
-        worker = start_worker(env, "cpu,grade", data_dir / "worker.log", warm=warm)
-        cleanup.callback(stop, worker)
-        yield Stack(kind, f"http://127.0.0.1:{port}", database_url, env, data_dir, tokens, engine, worker, api,
-                    names)
+        started = []
+        # Each is started (up to Celery's "ready") before the next; with `warm`, all warm up side by side and are
+        # waited for after: no worker's warm-up waits for another's.
+        for index in range(workers):
+            started.append(start_worker(env, "cpu,grade", data_dir / worker_log_name(index)))
+            cleanup.callback(stop, started[-1])
+        if warm:
+            from worker.warm_gate import OPENED  # lazy, as in start_worker
+
+            for index, proc in enumerate(started):
+                wait_for(lambda i=index: OPENED in (data_dir / worker_log_name(i)).read_text(errors="replace"),
+                         "celery worker's warm-up", proc, data_dir / worker_log_name(index), limit_s=WARM_UP_LIMIT_S)
+        yield Stack(kind, f"http://127.0.0.1:{port}", database_url, env, data_dir, tokens, engine, started[0], api,
+                    names, workers=started)
