@@ -36,6 +36,7 @@ class BenchOptions:
     out_dir: Path
     quick: bool = False
     variants_k: int = 16
+    api_cpus: str | None = None  # reads: the CPUs the API processes are pinned to (the readers get the others)
 
 
 def _graded_submission(stack) -> tuple[int, str]:
