@@ -31,11 +31,8 @@ from grader.core.models import CaseRun, ReviewRequest, Submission, User
 from grader.core.models import utcnow
 from grader.services.submissions.visibility import GradeView, next_shown_at
 from grader.web import fresh
-from grader.web.fresh import CACHE_CONTROL, matches_header
+from grader.web.fresh import CACHE_CONTROL, SHAPE, matches_header
 
-# Changes every validator when what a body is made of changes shape (a new field on the page or in the JSON), so a
-# browser's stored copy from an older release is never confirmed by a newer one.
-SHAPE = "1"
 # Rendered answers kept per API process (a report page is tens to a few hundred kB): bounded by count, not bytes.
 CACHE_ENTRIES = 256
 

@@ -27,6 +27,10 @@ from starlette.requests import Request
 
 from grader.core import clock, freshness
 
+# Changes every validator when what a body is made of changes shape (a new field on the page or in the JSON), so a
+# browser's stored copy from an older release is never confirmed by a newer one: part of grader.web.etag's
+# validators and of the entry keys here (an entry an older release kept is never read by a newer one).
+SHAPE = "1"
 CACHE_CONTROL = "private, no-cache"  # the browser keeps it for its own user and asks again each time
 # The four answers validated by grader.web.etag.report_state (series.json and the rest always take the full path).
 PATHS = re.compile(r"^(/v1)?/submissions/[0-9]+(/results\.json|/grade)?$")
@@ -44,7 +48,7 @@ def _key(scope, headers: dict[bytes, bytes]) -> str | None:
     if not authorization and SESSION_COOKIE not in cookie:
         return None
     return freshness.entry_key(
-        "v1", authorization, cookie, scope["method"], scope.get("scheme", "http"),
+        SHAPE, authorization, cookie, scope["method"], scope.get("scheme", "http"),
         headers.get(b"host", b"").decode("latin-1"), scope.get("root_path", ""), scope["path"],
         scope.get("query_string", b"").decode("latin-1"), headers.get(b"accept-language", b"").decode("latin-1"))
 
