@@ -42,7 +42,9 @@ def make_engine(url: str) -> Engine:
 # the mark into a bump owed, and the bump is made once the commit is done (the connection back in the pool, or its
 # next transaction begun), never before: a reader must not see the new epoch with the old rows.
 _WROTE, _OWED = "grader_wrote", "grader_bump_owed"
-_WRITES = re.compile(r"\s*(INSERT|UPDATE|DELETE|REPLACE|MERGE|UPSERT|CREATE|DROP|ALTER|TRUNCATE)\b", re.I)
+# Every statement but those known to read counts as a write (a CTE, DDL, anything new): a needless bump costs a
+# full read, a missed one a stale 304.
+_READS = re.compile(r"\s*(SELECT|PRAGMA|SHOW|EXPLAIN|BEGIN|SAVEPOINT|RELEASE|ROLLBACK|COMMIT|SET)\b", re.I)
 # Seeing a page sign-in session again (grader.services.identity.sessions.session_user) is no change to anything a
 # reader is answered: it alone does not retire the validators. Revoking one sets revoked_at, and does.
 _TOUCH = re.compile(r"\s*UPDATE web_sessions SET last_seen_at=\S+ WHERE web_sessions\.id = \S+\s*$")
@@ -52,7 +54,7 @@ _TOUCH = re.compile(r"\s*UPDATE web_sessions SET last_seen_at=\S+ WHERE web_sess
 def _mark_writes(conn, _cursor, statement, _parameters, _context, _executemany):
     if conn.info.pop(_OWED, False):  # the transaction that wrote is committed: a new one is starting
         freshness.bump()
-    if _WRITES.match(statement) and not _TOUCH.match(statement):
+    if not _READS.match(statement) and not _TOUCH.match(statement):
         conn.info[_WROTE] = True
 
 
