@@ -83,11 +83,24 @@ def entry_key(*parts: str) -> str:
 
 # -- the epoch ---------------------------------------------------------------------------------------------------
 
-_owed = threading.Event()  # a bump that failed: the next bump (any commit that wrote) retries it
+_owed = threading.Event()  # a bump that failed: retried by the next bump or read, at most once per RETRY_S
+RETRY_S = 1.0  # after the store failed, this process leaves it alone this long (a hung store costs one timeout)
+_failed_at = [float("-inf")]  # when the store last failed (time.monotonic)
+
+
+def _resting() -> bool:
+    return time.monotonic() - _failed_at[0] < RETRY_S
+
+
+def _failed() -> None:
+    _failed_at[0] = time.monotonic()
 
 
 def bump() -> None:
     """After a commit that wrote: every entry read under the old epoch stops being trusted."""
+    if _resting():  # the store failed a moment ago: owed, and paid by the first bump or read after the rest
+        _owed.set()
+        return
     kind = _kind()
     try:
         if kind == "redis":
@@ -101,6 +114,7 @@ def bump() -> None:
         _owed.clear()
     except (redis.RedisError, OSError) as exc:
         _owed.set()
+        _failed()
         log.error("write epoch not bumped (%s): validators read before this commit may be confirmed until their "
                   "not_after (at most %.0f s)", exc, ENTRY_TTL_S)
 
@@ -125,7 +139,14 @@ def read_epoch() -> str | None:
 # -- entries -----------------------------------------------------------------------------------------------------
 
 def read(key: str) -> tuple[str | None, Entry | None]:
-    """(epoch now, the entry at `key` if any) in one round trip; (None, None) where the store keeps none or fails."""
+    """(epoch now, the entry at `key` if any) in one round trip; (None, None) where the store keeps none or fails,
+    and while this process owes a bump it could not make (nothing is trusted until it is made)."""
+    if _resting():
+        return None, None
+    if _owed.is_set():
+        bump()
+        if _owed.is_set():
+            return None, None
     kind = _kind()
     raw = None
     try:
@@ -143,8 +164,7 @@ def read(key: str) -> tuple[str | None, Entry | None]:
         else:
             return None, None
     except (redis.RedisError, OSError):
-        return None, None
-    if _owed.is_set():  # this process failed to bump: trust nothing until a bump goes through
+        _failed()
         return None, None
     entry = None
     if raw:
@@ -184,6 +204,7 @@ def remember(key: str, *, etag: str, epoch: str, not_after: datetime) -> None:
             if random.random() < 0.01:
                 _sweep(folder)
     except (redis.RedisError, OSError) as exc:
+        _failed()
         log.warning("validator not kept (%s)", exc)
 
 

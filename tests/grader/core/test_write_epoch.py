@@ -28,6 +28,8 @@ def engine(request, tmp_path, monkeypatch):
         monkeypatch.setattr(settings, "broker_url", "filesystem://")
         monkeypatch.setattr(settings, "data_dir", tmp_path / "data")
     monkeypatch.setattr(freshness, "PREFIX", f"grader:fresh-test-{uuid.uuid4().hex[:12]}:")
+    freshness._owed.clear()  # nothing owed or resting from another test's store
+    freshness._failed_at[0] = float("-inf")
     url = f"sqlite:///{tmp_path / 'grader.db'}"
     migrated(url)
     engine = db.make_engine(url)
@@ -37,6 +39,7 @@ def engine(request, tmp_path, monkeypatch):
     yield engine
     engine.dispose()
     freshness._owed.clear()
+    freshness._failed_at[0] = float("-inf")
 
 
 def epoch():

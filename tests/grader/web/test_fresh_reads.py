@@ -39,9 +39,12 @@ def store(request, monkeypatch, tmp_path):
         monkeypatch.setattr(settings, "data_dir", tmp_path / "data")
     monkeypatch.setattr(freshness, "PREFIX", f"grader:fresh-test-{uuid.uuid4().hex[:12]}:")
     BODIES.clear()
+    freshness._owed.clear()  # nothing owed or resting from another test's store
+    freshness._failed_at[0] = float("-inf")
     yield request.param
     BODIES.clear()
     freshness._owed.clear()
+    freshness._failed_at[0] = float("-inf")
 
 
 @contextmanager
