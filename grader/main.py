@@ -11,6 +11,7 @@ from fastapi.staticfiles import StaticFiles
 
 from grader.web import errors, logs
 from grader.web.admission import BodyDeadline, ClientLimit, InFlightLimit, lifespan
+from grader.web.fresh import FreshReads
 from grader.web.headers import SecurityHeaders, docs_policy
 from grader.api.main import api_router
 from grader.api.routes.health import metrics_router
@@ -53,9 +54,12 @@ def swagger_ui() -> HTMLResponse:
 logs.install()  # no sign-in link's secret in the access log, whichever server runs the app
 
 # Outermost last: headers on every answer; then the per-client cap; then the whole body within its deadline; only
-# then an admission slot; then grader.web.errors' BodyGuard checks the body.
+# then an admission slot; then the 304 from memory; then grader.web.errors' BodyGuard checks the body.
 errors.install(app, max_bytes=settings.max_body_bytes, max_depth=settings.max_json_depth, page_error=page_errors.page_error)
 page_errors.install(app)
+# Innermost of these: a conditional read of an unchanged complete report answered 304 from the validator store,
+# before any dependency opens a database session (grader.web.fresh); admitted, limited and marked like any answer.
+app.add_middleware(FreshReads)
 app.add_middleware(InFlightLimit, limit=settings.api_threads)
 app.add_middleware(BodyDeadline, deadline_s=settings.body_deadline_s, max_bytes=settings.max_body_bytes,
                    page_error=early_page_error)

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from sqlalchemy import Engine, create_engine, event
 from sqlalchemy.orm import Session
+from sqlalchemy.pool import Pool
 
+from grader.core import freshness
 from grader.core.settings import settings
 
 MIGRATIONS = Path(__file__).resolve().parent.parent / "migrations"
@@ -32,6 +35,44 @@ def make_engine(url: str) -> Engine:
 
         return engine
     return create_engine(url, pool_pre_ping=True, **pool)
+
+
+# The write epoch (grader.core.freshness) changes after every commit that wrote anything, on every engine of the
+# process (the service's, a test's, a migration's): a statement that writes marks its connection, the commit turns
+# the mark into a bump owed, and the bump is made once the commit is done (the connection back in the pool, or its
+# next transaction begun), never before: a reader must not see the new epoch with the old rows.
+_WROTE, _OWED = "grader_wrote", "grader_bump_owed"
+# Every statement but those known to read counts as a write (a CTE, DDL, anything new): a needless bump costs a
+# full read, a missed one a stale 304.
+_READS = re.compile(r"\s*(SELECT|PRAGMA|SHOW|EXPLAIN|BEGIN|SAVEPOINT|RELEASE|ROLLBACK|COMMIT|SET)\b", re.I)
+# Seeing a page sign-in session again (grader.services.identity.sessions.session_user) is no change to anything a
+# reader is answered: it alone does not retire the validators. Revoking one sets revoked_at, and does.
+_TOUCH = re.compile(r"\s*UPDATE web_sessions SET last_seen_at=\S+ WHERE web_sessions\.id = \S+\s*$")
+
+
+@event.listens_for(Engine, "before_cursor_execute")
+def _mark_writes(conn, _cursor, statement, _parameters, _context, _executemany):
+    if conn.info.pop(_OWED, False):  # the transaction that wrote is committed: a new one is starting
+        freshness.bump()
+    if not _READS.match(statement) and not _TOUCH.match(statement):
+        conn.info[_WROTE] = True
+
+
+@event.listens_for(Engine, "commit")
+def _owe_bump(conn):
+    if conn.info.pop(_WROTE, False):
+        conn.info[_OWED] = True
+
+
+@event.listens_for(Engine, "rollback")
+def _forget_writes(conn):
+    conn.info.pop(_WROTE, None)
+
+
+@event.listens_for(Pool, "checkin")
+def _pay_bump(_dbapi_connection, record):
+    if record is not None and record.info.pop(_OWED, False):
+        freshness.bump()
 
 
 def get_engine() -> Engine:

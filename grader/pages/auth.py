@@ -16,6 +16,7 @@ from fastapi import Depends, Request
 
 from grader.services.identity import access, accounts, sessions
 from grader.services.setup import assignments
+from grader.web import fresh
 from grader.web.deps import SessionDep
 from grader.core.models import Assignment, Course, User
 from grader.services.errors import Forbidden, NotFound
@@ -29,12 +30,20 @@ def page_user(request: Request, session: SessionDep) -> User | None:
     header = request.headers.get("authorization", "")
     scheme, _, token = header.partition(" ")
     if scheme.lower() == "bearer" and token.strip():
-        return accounts.user_by_token(session=session, token=token.strip())
+        row = accounts.find_token(session=session, token=token.strip())
+        if accounts.token_refusal(row) is not None:
+            return None
+        fresh.credential_until(request, row.expires_at)
+        return row.user
     secret = request.cookies.get(COOKIE, "")
-    user = sessions.session_user(session=session, secret=secret) if secret else None
+    seen = sessions.seen_session(session=session, secret=secret) if secret else None
     if session.dirty:  # the session was seen: its idle time starts again
         session.commit()
-    return user
+    if seen is None:
+        return None
+    # Until the next read would note it seen again: a 304 from memory skips no renewal a full read would make.
+    fresh.credential_until(request, sessions.unchanged_until(seen))
+    return seen.user
 
 
 PageUser = Annotated[User | None, Depends(page_user)]

@@ -6,11 +6,12 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Annotated
 
-from fastapi import Depends, HTTPException, Path, status
+from fastapi import Depends, HTTPException, Path, Request, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.orm import Session
 
 from grader.services.identity import access, accounts
+from grader.web import fresh
 from grader.core.db import new_session
 from grader.core.models import Course, Submission, User
 
@@ -33,7 +34,7 @@ def get_session() -> Iterator[Session]:
 SessionDep = Annotated[Session, Depends(get_session)]
 
 
-def current_user(session: SessionDep,
+def current_user(request: Request, session: SessionDep,
                  credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)]) -> User:
     if credentials is None or credentials.scheme.lower() != "bearer":
         raise HTTPException(status.HTTP_401_UNAUTHORIZED, "missing bearer token", {"WWW-Authenticate": "Bearer"})
@@ -41,6 +42,7 @@ def current_user(session: SessionDep,
     refusal = accounts.token_refusal(row)
     if refusal is not None:  # says which: unknown, revoked or expired
         raise HTTPException(status.HTTP_401_UNAUTHORIZED, refusal, {"WWW-Authenticate": "Bearer"})
+    fresh.credential_until(request, row.expires_at)  # a revocation is a write: grader.web.fresh
     return row.user
 
 

@@ -20,6 +20,7 @@ import json
 import threading
 from collections import OrderedDict
 from collections.abc import Callable
+from datetime import datetime
 
 from fastapi import Request, Response
 from sqlalchemy import select
@@ -27,14 +28,13 @@ from sqlalchemy.orm import Session
 
 from grader.core.states import SubmissionState
 from grader.core.models import CaseRun, ReviewRequest, Submission, User
-from grader.services.submissions.visibility import GradeView
+from grader.core.models import utcnow
+from grader.services.submissions.visibility import GradeView, next_shown_at
+from grader.web import fresh
+from grader.web.fresh import CACHE_CONTROL, SHAPE, matches_header
 
-# Changes every validator when what a body is made of changes shape (a new field on the page or in the JSON), so a
-# browser's stored copy from an older release is never confirmed by a newer one.
-SHAPE = "1"
 # Rendered answers kept per API process (a report page is tens to a few hundred kB): bounded by count, not bytes.
 CACHE_ENTRIES = 256
-CACHE_CONTROL = "private, no-cache"  # the browser keeps it for its own user and asks again each time
 
 
 def complete(submission: Submission, view: GradeView) -> bool:
@@ -60,6 +60,14 @@ def report_state(session: Session, submission: Submission, user: User, view: Gra
             sorted(view.hidden.items()), [(r.id, str(r.answered_at), r.override_id) for r in reviews]]
 
 
+def shown_until(session: Session, submission: Submission, user: User, view: GradeView) -> datetime | None:
+    """The next instant at which time alone shows `user` an item withheld now (a due date passing), or None: the
+    validator store must not confirm this answer from that instant on."""
+    if not view.hidden:
+        return None
+    return next_shown_at(session=session, submission=submission, user=user, now=utcnow())
+
+
 def etag_of(kind: str, state: list, *extra) -> str:
     """A strong ETag for one kind of answer (page, JSON, results) over its state and anything else it varies by."""
     blob = json.dumps([kind, state, *extra], default=str, separators=(",", ":"))
@@ -68,13 +76,7 @@ def etag_of(kind: str, state: list, *extra) -> str:
 
 def matches(request: Request, etag: str) -> bool:
     """Whether the request's If-None-Match names `etag` (weak comparison, as RFC 9110 asks for If-None-Match)."""
-    header = request.headers.get("if-none-match")
-    if not header:
-        return False
-    if header.strip() == "*":
-        return True
-    tags = {t.strip().removeprefix("W/") for t in header.split(",")}
-    return etag in tags
+    return matches_header(request.headers.get("if-none-match"), etag)
 
 
 def not_modified(etag: str) -> Response:
@@ -123,12 +125,14 @@ BODIES = BodyCache()
 
 
 def conditional(request: Request, etag: str | None, build: Callable[[], Response], *,
-                cache_key: str | None = None) -> Response:
+                cache_key: str | None = None, until: datetime | None = None) -> Response:
     """304 where the request already holds `etag`; otherwise the answer `build` makes, marked with `etag`. With a
     `cache_key` (the kind of answer; the ETag is appended), a 200 answer is built once per validator and process.
-    `etag` None (an incomplete report): built each time, no ETag."""
+    `etag` None (an incomplete report): built each time, no ETag. The validator is kept for grader.web.fresh's 304
+    from memory until `until` at the latest (when time alone changes the answer: `shown_until`)."""
     if etag is None:
         return build()
+    fresh.remember(request, etag, until)
     if matches(request, etag):
         return not_modified(etag)
     key = f"{cache_key}:{etag}" if cache_key else None

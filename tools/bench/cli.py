@@ -62,13 +62,16 @@ def _counts(value: str) -> tuple[int, ...]:
 @click.option("--api-stacks", default="embedded", show_default=True, help="Stacks the API load runs on.")
 @click.option("--api-think", default="0,1", show_default=True,
               help="Seconds each reader pauses between reads, one load per value (0: back to back).")
+@click.option("--api-cpus", default=None, metavar="CPUS",
+              help="Part reads: pin the API processes to these CPUs (taskset list, e.g. 1) and the readers to the "
+                   "others, so that the API has cores of its own.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("out/bench"),
               show_default=True, help="Case folders and service data.")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Where the figures go (default OUT/bench.json).")
 def bench(quick: bool, only: str, cases: str | None, repeats: int | None, class_size: int | None, class_stacks: str,
           class_workers: str, class_slots: int, variants_k: int | None, memory_cases: int | None, api_clients: int,
-          api_stacks: str, api_think: str, out_dir: Path, json_path: Path | None) -> None:
+          api_stacks: str, api_think: str, api_cpus: str | None, out_dir: Path, json_path: Path | None) -> None:
     """Measure, print a table per part with the targets met or missed, and write the figures as JSON."""
     size = QUICK if quick else FULL
     options = run.BenchOptions(
@@ -79,7 +82,7 @@ def bench(quick: bool, only: str, cases: str | None, repeats: int | None, class_
         api_stacks=[s.strip() for s in api_stacks.split(",")],
         api_think_s=tuple(float(t) for t in api_think.split(",")),
         out_dir=out_dir, quick=quick, variants_k=variants_k or size["variants"],
-        class_workers=_counts(class_workers), class_slots=class_slots)
+        class_workers=_counts(class_workers), class_slots=class_slots, api_cpus=api_cpus)
     json_path = json_path or out_dir / "bench.json"
     report = {"command": " ".join(["python", "-m", "tools.bench", *sys.argv[1:]]), "quick": quick,
               "started_utc": datetime.now(UTC).isoformat(timespec="seconds"), "host": platform.node(),

@@ -38,6 +38,7 @@ class BenchOptions:
     variants_k: int = 16
     class_workers: tuple[int, ...] = (1, 2)
     class_slots: int = 0  # case slots per worker in the class; 0: classroom.slots_per_worker
+    api_cpus: str | None = None  # reads: the CPUs the API processes are pinned to (the readers get the others)
 
 
 def _graded_submission(stack) -> tuple[int, str]:

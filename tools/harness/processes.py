@@ -67,9 +67,11 @@ def start_worker(env: dict, queues: str, log: Path, *, warm: bool = False) -> su
     return proc
 
 
-def start_api(env: dict, port: int, log: Path, *, workers: int = 1) -> subprocess.Popen:
-    """The API under uvicorn on 127.0.0.1:port (`workers` processes, as deployed), returned once /v1/health answers."""
-    proc = subprocess.Popen([sys.executable, "-m", "uvicorn", "grader.main:app", "--host", "127.0.0.1",
+def start_api(env: dict, port: int, log: Path, *, workers: int = 1, cpus: str | None = None) -> subprocess.Popen:
+    """The API under uvicorn on 127.0.0.1:port (`workers` processes, as deployed), returned once /v1/health answers;
+    with `cpus` (a taskset list), every API process runs on those CPUs only."""
+    pin = ["taskset", "-c", cpus] if cpus else []
+    proc = subprocess.Popen([*pin, sys.executable, "-m", "uvicorn", "grader.main:app", "--host", "127.0.0.1",
                              "--port", str(port), "--log-level", "warning", "--workers", str(workers)],
                             cwd=ROOT, env=env,
                             stdout=log.open("ab"), stderr=subprocess.STDOUT, start_new_session=True)

@@ -80,7 +80,8 @@ def report_page(request: Request, submission_id: int, session: SessionDep, user:
     tag = etag.etag_of("report-page", etag.report_state(session, submission, user, grade), request_locale(request),
                        {k: v for k, v in (attempt or {}).items() if k != "assignment"}, str(request.url)) \
         if etag.complete(submission, grade) else None
-    return etag.conditional(request, tag, build, cache_key="report-page")
+    return etag.conditional(request, tag, build, cache_key="report-page",
+                            until=tag and etag.shown_until(session, submission, user, grade))
 
 
 def report_response(request: Request, session, user, submission: Submission, *, grade=None, attempt=None,
@@ -134,7 +135,7 @@ def results_download(request: Request, submission_id: int, session: SessionDep, 
         if etag.complete(submission, grade) else None
     return etag.conditional(request, tag, lambda: JSONResponse(grade.report, headers={
         "Content-Disposition": f'attachment; filename="submission-{submission.id}-results.json"'}),
-        cache_key="results")
+        cache_key="results", until=tag and etag.shown_until(session, submission, user, grade))
 
 
 @router.get("/submissions/{submission_id}/series.json")

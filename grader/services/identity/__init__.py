@@ -17,8 +17,8 @@ quotas: Per-person and per-address quotas on costly or guessable work, counted b
 sessions: Page sign-in sessions: the browser's cookie holds a random 256-bit secret, the table only its sha256; a
   session ends when idle too long, at its absolute expiry (never after its token's), or when revoked (sign-out, its
   token revoked, the sign-in link that opened it re-issued).
-  public: open_session, session_user, revoke_session, revoke_link_sessions, refuse_failing_address,
-    count_failed_sign_in, revoke_sessions
+  public: open_session, session_user, seen_session, unchanged_until, revoke_session, revoke_link_sessions,
+    refuse_failing_address, count_failed_sign_in, revoke_sessions
 sign_in_links: Students' sign-in links: a random 256-bit secret in the link, only its sha256 stored; one live link
   per student (issuing another revokes the earlier and ends the page sessions the earlier links opened), used once,
   within settings.sign_in_link_days.

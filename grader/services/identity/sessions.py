@@ -43,13 +43,28 @@ def _live(row: WebSession | None, now: datetime) -> bool:
 def session_user(*, session: Session, secret: str) -> User | None:
     """The user of a live session, noting that it was seen (the caller commits); None for an unknown, expired, idle
     or revoked one."""
+    row = seen_session(session=session, secret=secret)
+    return row.user if row is not None else None
+
+
+def seen_session(*, session: Session, secret: str) -> WebSession | None:
+    """The live session of this secret, noted as seen (the caller commits); None for an unknown, expired, idle or
+    revoked one."""
     row = session.scalar(select(WebSession).where(WebSession.secret_hash == hash_token(secret)))
     now = utcnow()
     if not _live(row, now):
         return None
     if now - row.last_seen_at >= TOUCH_EVERY:
         row.last_seen_at = now
-    return row.user
+    return row
+
+
+def unchanged_until(row: WebSession) -> datetime:
+    """Until when reading with this live session changes nothing about it: its expiry, its idle end, and the next
+    instant a read notes it seen again (TOUCH_EVERY after the last). A read answered without the database before
+    then (grader.web.fresh) signs no one out sooner than a full read would."""
+    return min(row.expires_at, row.last_seen_at + TOUCH_EVERY,
+               row.last_seen_at + timedelta(seconds=settings.session_idle_s))
 
 
 def revoke_session(*, session: Session, secret: str) -> bool:

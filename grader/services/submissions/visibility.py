@@ -78,6 +78,29 @@ def _withheld_by(session: Session, assignment: Assignment, student: User, now: d
     return {i: reason for i, reason in hidden.items() if reason}
 
 
+def next_shown_at(*, session: Session, submission: Submission, user: User, now: datetime) -> datetime | None:
+    """The next instant after `now` at which time alone shows `user` an item of `submission` withheld at `now` (a due
+    date passing, the student's extension's where granted), or None where no such instant comes: releases and every
+    other change are writes. What a validator kept in memory must not outlive (grader.web.fresh)."""
+    if access.is_staff(user) and user.course_id == submission.course_id:
+        return None
+    if submission.assignment is not None:
+        candidates = [(submission.assignment, None)]
+    else:
+        ids = set(item_ids(submission.lesson, submission.part))
+        candidates = [(a, ids) for a in session.scalars(select(Assignment).where(
+            Assignment.course_id == submission.course_id, Assignment.lesson == submission.lesson)
+            .order_by(Assignment.id))]
+    times = []
+    for assignment, only in candidates:
+        ids = [i for i in item_ids(assignment.lesson, assignment.part) if only is None or i in only]
+        if any(visibility_of(assignment, i) == Visibility.AFTER_DUE for i in ids):
+            due = dates_for(session=session, assignment=assignment, student=submission.student).due_at
+            if due > now:
+                times.append(due)
+    return min(times, default=None)
+
+
 # Items the rubric decides by measurement (rubric.rubrics.ItemKind); a conceptual item's runs only illustrate it and
 # a config item is decided from the submitted configs.
 MEASURED_KINDS = ("measured", "computed")

@@ -70,7 +70,7 @@ def get_submission(request: Request, submission: SubmissionDep, session: Session
     tag = etag.etag_of("v1-submission", etag.report_state(session, submission, user, view),
                        attempt_standing(session, submission, user, view)) if etag.complete(submission, view) else None
     return etag.conditional(request, tag, lambda: _json(submission_public(submission, session, user)),
-                            cache_key="v1-submission")
+                            cache_key="v1-submission", until=tag and etag.shown_until(session, submission, user, view))
 
 
 @router.get("/{submission_id}/grade", response_model=GradePublic,
@@ -84,7 +84,8 @@ def get_grade(request: Request, submission: SubmissionDep, session: SessionDep, 
         raise Conflict(detail + (f": {submission.error}" if submission.error else ""))
     tag = etag.etag_of("v1-grade", etag.report_state(session, submission, user, view)) \
         if etag.complete(submission, view) else None
-    return etag.conditional(request, tag, lambda: _json(grade_public(view)), cache_key="v1-grade")
+    return etag.conditional(request, tag, lambda: _json(grade_public(view)), cache_key="v1-grade",
+                            until=tag and etag.shown_until(session, submission, user, view))
 
 
 @router.get("/{submission_id}/grades", response_model=list[GradeHistoryEntry], responses={**ONE, **NOT_GRADED})

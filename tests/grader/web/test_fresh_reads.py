@@ -1,0 +1,219 @@
+"""A 304 with no database query (issue 35 item 3, grader.web.fresh): a conditional read of an unchanged complete
+report is answered from the validator store, on Redis and on the embedded store, with no SQL statement; every write
+(an override, a release, a token's revocation, a sign-out) and a due date passing make the next conditional read a
+full one (200 or 401, never a stale 304); another reader's credential never gets one from someone else's entry; and
+with the store down every read takes the database path, still right. Over the real app in-process, real grades
+(checkpoint sheets graded on the lesson's cases as really measured)."""
+
+from __future__ import annotations
+
+import uuid
+from contextlib import contextmanager
+from datetime import UTC, timedelta
+
+import pytest
+from sqlalchemy import event
+
+from tests.grader.services.setup.test_assignments import create, submit
+from tests.grader.services.setup.test_assignments import lesson_cases_stored  # noqa: F401 - autouse: the lesson measured
+
+READS = ("/submissions/{sid}", "/submissions/{sid}/results.json", "/v1/submissions/{sid}",
+         "/v1/submissions/{sid}/grade")
+
+
+@pytest.fixture(params=["embedded", "redis"])
+def store(request, monkeypatch, tmp_path):
+    """The validator store of this test alone: the embedded one (files under data_dir/broker) or a private Redis
+    database; a key prefix of its own, so test processes side by side never bump each other's epoch."""
+    from grader.core import freshness
+    from grader.core.settings import settings
+    from grader.web.etag import BODIES
+
+    if request.param == "redis":
+        from tests.services import REDIS_URL, redis_client
+
+        redis_client()  # skips (fails on CI) where Redis is not reachable
+        monkeypatch.setattr(settings, "broker_url", REDIS_URL)
+    else:
+        monkeypatch.setattr(settings, "broker_url", "filesystem://")
+        monkeypatch.setattr(settings, "data_dir", tmp_path / "data")
+    monkeypatch.setattr(freshness, "PREFIX", f"grader:fresh-test-{uuid.uuid4().hex[:12]}:")
+    BODIES.clear()
+    freshness._owed.clear()  # nothing owed or resting from another test's store
+    freshness._failed_at[0] = float("-inf")
+    yield request.param
+    BODIES.clear()
+    freshness._owed.clear()
+    freshness._failed_at[0] = float("-inf")
+
+
+@contextmanager
+def statements():
+    """Every SQL statement the app's engine runs within the block."""
+    from grader.core import db
+
+    ran: list[str] = []
+
+    def note(_conn, _cursor, statement, *_args):
+        ran.append(statement)
+
+    engine = db.get_engine()
+    event.listen(engine, "before_cursor_execute", note)
+    try:
+        yield ran
+    finally:
+        event.remove(engine, "before_cursor_execute", note)
+
+
+def graded(api, **assignment) -> tuple[int, int]:
+    aid = create(api, **assignment).json()["id"]
+    response = submit(api, aid)
+    assert response.status_code == 202 and response.json()["status"] == "graded", response.text
+    return aid, response.json()["id"]
+
+
+def read(api, path: str, who="alice", tag: str | None = None, **headers):
+    if tag:
+        headers["If-None-Match"] = tag
+    if who:
+        headers |= api.as_(who)
+    return api.client.get(path, headers=headers, follow_redirects=False)
+
+
+def tags(api, sid, who="alice") -> dict[str, str]:
+    out = {}
+    for pattern in READS:
+        response = read(api, pattern.format(sid=sid), who)
+        assert response.status_code == 200, response.text
+        out[pattern] = response.headers["etag"]
+    return out
+
+
+def from_memory(api, path: str, tag: str, who="alice", **headers) -> None:
+    """The conditional read is a 304 with the route's headers and not one SQL statement."""
+    with statements() as ran:
+        response = read(api, path, who, tag=tag, **headers)
+    assert response.status_code == 304, (path, response.status_code)
+    assert ran == [], (path, ran)
+    assert response.headers["etag"] == tag and response.headers["cache-control"] == "private, no-cache"
+    assert response.content == b"" and response.headers["x-content-type-options"] == "nosniff"  # marked as any
+
+
+def test_an_unchanged_report_answers_304_with_no_sql_on_every_read(api, store):
+    _, sid = graded(api)
+    for pattern, tag in tags(api, sid).items():
+        from_memory(api, pattern.format(sid=sid), tag)
+        # another tag: the full path answers in full, with the same validator
+        full = read(api, pattern.format(sid=sid), tag='"not-this-one"')
+        assert full.status_code == 200 and full.headers["etag"] == tag
+
+
+def test_a_page_session_cookie_answers_from_memory_and_sign_out_ends_it(api, store):
+    _, sid = graded(api)
+    api.client.cookies.clear()
+    signed = api.client.post("/sign-in", data={"token": api.tokens["alice"]}, follow_redirects=False)
+    assert signed.status_code == 303, signed.text
+    secret = api.client.cookies["grader_session"]
+    page = read(api, f"/submissions/{sid}", who=None)
+    assert page.status_code == 200, page.text
+    from_memory(api, f"/submissions/{sid}", page.headers["etag"], who=None)
+    assert api.client.post("/sign-out", follow_redirects=False).status_code == 303
+    # The same cookie, kept: signed out, never a 304 from memory.
+    again = api.client.get(f"/submissions/{sid}", headers={"If-None-Match": page.headers["etag"],
+                                                          "Cookie": f"grader_session={secret}"},
+                           follow_redirects=False)
+    assert again.status_code == 303 and again.headers["location"].startswith("/sign-in"), again.status_code
+
+
+def test_an_override_makes_the_next_conditional_read_a_full_one(api, store):
+    _, sid = graded(api)
+    before = tags(api, sid)
+    made = api.client.post(f"/v1/submissions/{sid}/overrides", headers=api.as_("prof"),
+                           json={"item_id": "C2", "score": 0, "comment": "The reason quotes the wrong condition."})
+    assert made.status_code == 201, made.text
+    for pattern, tag in before.items():
+        response = read(api, pattern.format(sid=sid), tag=tag)
+        assert response.status_code == 200 and response.headers["etag"] != tag, pattern
+        from_memory(api, pattern.format(sid=sid), response.headers["etag"])
+    assert read(api, f"/v1/submissions/{sid}/grade").json()["items"][1]["score"] == 0
+
+
+def test_a_release_makes_the_next_conditional_read_a_full_one(api, store):
+    aid, sid = graded(api, item_visibility={"C2": "on_release"})
+    before = tags(api, sid)
+    from_memory(api, f"/submissions/{sid}", before["/submissions/{sid}"])
+    assert "1 of 8 points pending" in read(api, f"/submissions/{sid}").text
+    assert api.client.post(f"/v1/assignments/{aid}/release", headers=api.as_("prof")).status_code == 200
+    for pattern, tag in before.items():
+        response = read(api, pattern.format(sid=sid), tag=tag)
+        assert response.status_code == 200 and response.headers["etag"] != tag, pattern
+    assert "points pending" not in read(api, f"/submissions/{sid}").text
+
+
+def test_a_revoked_token_gets_401_not_a_304(api, store):
+    from grader.core.db import new_session
+    from grader.services.identity import accounts
+
+    _, sid = graded(api)
+    before = tags(api, sid)
+    from_memory(api, f"/v1/submissions/{sid}", before["/v1/submissions/{sid}"])
+    with new_session() as session:
+        accounts.revoke_token(session=session, token_or_id=api.tokens["alice"])
+        session.commit()
+    assert read(api, f"/v1/submissions/{sid}", tag=before["/v1/submissions/{sid}"]).status_code == 401
+    assert read(api, f"/v1/submissions/{sid}/grade", tag=before["/v1/submissions/{sid}/grade"]).status_code == 401
+    page = read(api, f"/submissions/{sid}", tag=before["/submissions/{sid}"])
+    assert page.status_code == 303 and page.headers["location"].startswith("/sign-in")
+
+
+def test_a_due_date_passing_shows_the_item_at_once(api, store):
+    from grader.core import clock
+
+    start = clock.now().replace(microsecond=0, tzinfo=UTC)
+    due = start + timedelta(seconds=30)  # sooner than the entries' last guard (freshness.ENTRY_TTL_S)
+    with clock.frozen(start):
+        _, sid = graded(api, open_at=(start - timedelta(days=1)).isoformat(), due_at=due.isoformat(),
+                        item_visibility={"C2": "after_due"})
+        page = read(api, f"/submissions/{sid}")
+        assert "1 of 8 points pending" in page.text
+        from_memory(api, f"/submissions/{sid}", page.headers["etag"])
+    with clock.frozen(due - timedelta(seconds=1)):  # still withheld: still answered from memory
+        from_memory(api, f"/submissions/{sid}", page.headers["etag"])
+    with clock.frozen(due + timedelta(seconds=1)):
+        with statements() as ran:
+            after = read(api, f"/submissions/{sid}", tag=page.headers["etag"])
+        assert after.status_code == 200 and after.headers["etag"] != page.headers["etag"] and ran
+        assert "points pending" not in after.text
+
+
+def test_another_readers_credential_never_gets_a_304_from_someone_elses_entry(api, store):
+    _, sid = graded(api)
+    mine = tags(api, sid)
+    for pattern, tag in mine.items():
+        path = pattern.format(sid=sid)
+        from_memory(api, path, tag)
+        staff = read(api, path, "prof", tag=tag)  # may read it, but their answer is their own
+        assert staff.status_code == 200 and staff.headers["etag"] != tag, path
+        outsider = read(api, path, "bob", tag=tag)  # may not read it at all
+        assert outsider.status_code == 404 and "etag" not in outsider.headers, path
+        nobody = read(api, path, None, tag=tag)
+        assert nobody.status_code in (303, 401), path
+
+
+def test_with_the_store_down_every_read_takes_the_database_path(api, store, monkeypatch):
+    from grader.core.settings import settings
+    from tests.services import free_port
+
+    _, sid = graded(api)
+    before = tags(api, sid)
+    monkeypatch.setattr(settings, "broker_url", f"redis://127.0.0.1:{free_port()}/0")  # nothing listens there
+    for pattern, tag in before.items():
+        with statements() as ran:
+            response = read(api, pattern.format(sid=sid), tag=tag)
+        assert response.status_code == 304 and ran, pattern  # the route's own 304, from the database
+    made = api.client.post(f"/v1/submissions/{sid}/overrides", headers=api.as_("prof"),
+                           json={"item_id": "C2", "score": 0, "comment": "The reason quotes the wrong condition."})
+    assert made.status_code == 201, made.text  # a write whose epoch cannot be bumped still commits
+    for pattern, tag in before.items():
+        response = read(api, pattern.format(sid=sid), tag=tag)
+        assert response.status_code == 200 and response.headers["etag"] != tag, pattern
