@@ -14,7 +14,7 @@ from datetime import UTC, timedelta
 import pytest
 from sqlalchemy import event
 
-from tests.grader.services.setup.test_assignments import create, submit
+from tests.grader.web.test_etag import graded  # an assignment and its graded submission, as the ETag tests make them
 from tests.grader.services.setup.test_assignments import lesson_cases_stored  # noqa: F401 - autouse: the lesson measured
 
 READS = ("/submissions/{sid}", "/submissions/{sid}/results.json", "/v1/submissions/{sid}",
@@ -63,13 +63,6 @@ def statements():
         yield ran
     finally:
         event.remove(engine, "before_cursor_execute", note)
-
-
-def graded(api, **assignment) -> tuple[int, int]:
-    aid = create(api, **assignment).json()["id"]
-    response = submit(api, aid)
-    assert response.status_code == 202 and response.json()["status"] == "graded", response.text
-    return aid, response.json()["id"]
 
 
 def read(api, path: str, who="alice", tag: str | None = None, **headers):
