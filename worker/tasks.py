@@ -37,6 +37,10 @@ def run_case_run(case_run_id: int, delivery: int) -> None:
             raise
     if to_grade is not None:
         grade_submission.apply_async(args=[to_grade], queue=GRADE_QUEUE)
+    with new_session() as session:  # the same case queued for other sheets: finished on this measurement now
+        alike = lifecycle.finish_alike(session, case_run_id)
+    for submission_id in alike:
+        grade_submission.apply_async(args=[submission_id], queue=GRADE_QUEUE)
     with new_session() as session:  # after grading was sent: the audit never delays a grade
         audit_finished_run(session, case_run_id)
 

@@ -214,6 +214,44 @@ def store_reused(*, session: Session, run: CaseRun, measurement: Measurement) ->
     return _finish(session, run, status=CaseRunState.DONE, detail=_apply_measurement(run, measurement))
 
 
+def finish_alike(session: Session, case_run_id: int) -> list[int]:
+    """Once a run has stored a new measurement, finish on it every queued grading run of the same content key, before
+    any of their messages reaches a worker (a worker then drops each message as finished, `claim`). A class at the
+    deadline queues the same case for many sheets; without this each of those runs took a case slot in turn, only to
+    find the measurement and reuse it. Returns the submissions this moved to grading: their grade tasks are the
+    caller's to send.
+
+    Candidates share the run's spec_key, backend and precision; each is reused only when the content key of its own
+    spec, computed here where the case ran, is the measurement's. One transaction per run, its submission locked first
+    (the order `_finish` takes), so a worker claiming one of them meanwhile either finds it finished or keeps it."""
+    run = session.get(CaseRun, case_run_id)
+    if (run is None or run.status != CaseRunState.DONE or run.purpose != CaseRunPurpose.GRADING
+            or run.reused_from_id is not None or run.measurement_id is None or run.spec_key is None):
+        return []
+    measurement_id, backend, precision = run.measurement_id, run.backend, run.precision
+    key = session.get(Measurement, measurement_id).content_key
+    candidates = session.execute(
+        select(CaseRun.id, CaseRun.submission_id, CaseRun.spec).join(Submission, Submission.id == CaseRun.submission_id)
+        .where(CaseRun.spec_key == run.spec_key, CaseRun.backend == backend, CaseRun.precision == precision,
+               CaseRun.status == CaseRunState.QUEUED, CaseRun.purpose == CaseRunPurpose.GRADING,
+               Submission.force_rerun.is_(False))
+        .order_by(CaseRun.submission_id, CaseRun.id)).all()
+    session.rollback()  # no transaction held across the runs below
+    moved = []
+    for other_id, submission_id, spec in candidates:
+        if content_key.content_key(content_key.key_inputs(spec, backend=backend, precision=precision)) != key:
+            continue
+        lock_submission(session, submission_id)
+        other = session.get(CaseRun, other_id, with_for_update=True, populate_existing=True)
+        if other.status != CaseRunState.QUEUED:  # a worker claimed it meanwhile: it reuses the measurement itself
+            session.rollback()
+            continue
+        detail = _apply_measurement(other, session.get(Measurement, measurement_id))
+        if _finish(session, other, status=CaseRunState.DONE, detail=f"{detail} (finished when it was measured)"):
+            moved.append(submission_id)
+    return moved
+
+
 def reuse_at_admission(*, session: Session, submission: Submission) -> bool:
     """Finish each queued case run of a new submission whose content key already has a stored measurement, in the
     request that stores it (no commit here: the caller's one transaction holds the submission and its runs). True when
