@@ -40,14 +40,16 @@ def reusable(*, session: Session, run: CaseRun, key_inputs: dict[str, Any]) -> M
 def measuring_first(*, session: Session, run: CaseRun) -> CaseRun | None:
     """The grading run measuring the same content key right now (running under a live lease, not reusing), claimed
     before this one; None when there is none. Only an earlier claim counts (ties by id), so two runs never wait for
-    each other: the first measures, the later ones wait for its measurement."""
-    return session.scalar(
+    each other: the first measures, the later ones wait for its measurement. A run held by a dead process of this
+    host (a worker killed mid-case, its lease not yet over) measures nothing: nobody waits for it."""
+    earlier = session.scalars(
         select(CaseRun).where(
             CaseRun.content_key == run.content_key, CaseRun.id != run.id, CaseRun.status == CaseRunState.RUNNING,
             CaseRun.purpose == CaseRunPurpose.GRADING, CaseRun.reused_from_id.is_(None),
             CaseRun.lease_until > utcnow(),
             or_(CaseRun.started_at < run.started_at, and_(CaseRun.started_at == run.started_at, CaseRun.id < run.id)))
-        .order_by(CaseRun.started_at, CaseRun.id).limit(1))
+        .order_by(CaseRun.started_at, CaseRun.id))
+    return next((other for other in earlier if not lifecycle.held_by_the_dead(other)), None)
 
 
 def await_measurement(*, session: Session, run: CaseRun, limit_s: float = IN_FLIGHT_WAIT_MAX_S) -> Measurement | None:

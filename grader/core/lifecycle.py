@@ -72,13 +72,19 @@ def _zombie(pid: int) -> bool:
     return stat.rsplit(")", 1)[-1].split()[0] in ("Z", "X")
 
 
+def held_by_the_dead(run: CaseRun) -> bool:
+    """The run is held by a process of this host that no longer exists (a killed worker's run, before its lease ends).
+    False for a run held on another host: only its lease tells there."""
+    return run.worker == HOST and not _pid_alive(run.worker_pid)
+
+
 def dead_here(session: Session) -> list[CaseRun]:
     """Running runs claimed on this very host by a process that no longer exists (locked; knowable without a broker).
 
     No grace: a claim records its live pid in the same transaction, so a dead pid is certain, never in transit."""
     running = select(CaseRun).where(CaseRun.status == CaseRunState.RUNNING, CaseRun.worker == HOST)
     return [run for run in session.scalars(running.with_for_update(skip_locked=True)).all()
-            if not _pid_alive(run.worker_pid)]
+            if held_by_the_dead(run)]
 
 
 def lease_expired(now: datetime):

@@ -136,3 +136,28 @@ def test_a_wait_is_bounded_and_a_forced_rerun_never_waits(api, monkeypatch):
         second.submission.force_rerun = True
         monkeypatch.setattr(case_run, "measuring_first", lambda **_: pytest.fail("a forced re-run asked"))
         assert case_run.await_measurement(session=session, run=second) is None
+
+
+def test_nobody_waits_for_a_run_held_by_a_dead_process(api):
+    """A worker killed mid-case leaves its run 'running' under a live lease; a later run of that case measures at once
+    instead of waiting out the bound (IN_FLIGHT_WAIT_MAX_S) for a measurement that never comes."""
+    import subprocess
+    import sys
+
+    from grader.core.db import new_session
+    from worker import case_run
+
+    first, later = _n1(_post(api, "alice")), _n1(_post(api, "bob"))
+    _claim_and_key(*first)
+    _claim_and_key(*later)
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()  # reaped: its pid names no process
+    with new_session() as session:
+        second = session.get(case_run.CaseRun, later[0])
+        assert case_run.measuring_first(session=session, run=second).id == first[0]  # its claimer (this process) lives
+        session.get(case_run.CaseRun, first[0]).worker_pid = gone.pid
+        session.commit()
+        assert case_run.measuring_first(session=session, run=second) is None
+        started = time.monotonic()
+        assert case_run.await_measurement(session=session, run=second) is None
+        assert time.monotonic() - started < 2
