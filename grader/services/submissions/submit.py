@@ -40,19 +40,15 @@ def create_submission(
     session.add(submission)
     session.flush()
     session.add(Event(submission_id=submission.id, state="submitted", detail=f"{len(specs)} case runs"))
+    runs = []
     for spec in specs:
-        run = CaseRun(
-            submission_id=submission.id,
-            name=spec.name,
-            kind=spec.kind,
-            backend=spec.backend,
-            precision=spec.precision,
-            spec=spec.model_dump(mode="json", exclude_computed_fields=True),
-            spec_key=spec_key(spec.model_dump(mode="json", exclude_computed_fields=True)),
-        )
-        session.add(run)
-        session.flush()
-        session.add(Event(submission_id=submission.id, case_run_id=run.id, state=CaseRunState.QUEUED, detail=f"queue {run.backend}"))
+        dumped = spec.model_dump(mode="json", exclude_computed_fields=True)
+        runs.append(CaseRun(submission_id=submission.id, name=spec.name, kind=spec.kind, backend=spec.backend,
+                            precision=spec.precision, spec=dumped, spec_key=spec_key(dumped)))
+    session.add_all(runs)
+    session.flush()  # one INSERT for every run (their ids for the events), not one round trip per run
+    session.add_all([Event(submission_id=submission.id, case_run_id=run.id, state=CaseRunState.QUEUED,
+                           detail=f"queue {run.backend}") for run in runs])
     return submission
 
 
