@@ -75,6 +75,7 @@ def _class_profile(f: dict) -> list[str]:
     lines.append(f"    posting {f['posting_s']:.1f} s for {f['submissions']} POSTs "
                  f"({1000 * f['posting_s'] / max(1, f['submissions']):.0f} ms each, one client after another)")
     lines.append(f"    runs {runs['runs']} of {accepted} submissions: {runs['reused_at_admission']} reused at admission, "
+                 f"{runs.get('finished_when_measured', 0)} finished in the queue when their case was measured, "
                  f"{runs['reused_in_worker']} reused in a worker, {runs['measured']} measured ({runs['measured_keys']} "
                  f"distinct, {runs['measured_twice']} measured again concurrently), {runs['failed_runs']} failed")
     if runs["measured"]:
