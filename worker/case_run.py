@@ -48,7 +48,7 @@ def measuring_first(*, session: Session, run: CaseRun) -> CaseRun | None:
             CaseRun.purpose == CaseRunPurpose.GRADING, CaseRun.reused_from_id.is_(None),
             CaseRun.lease_until > utcnow(),
             or_(CaseRun.started_at < run.started_at, and_(CaseRun.started_at == run.started_at, CaseRun.id < run.id)))
-        .order_by(CaseRun.started_at, CaseRun.id))
+        .order_by(CaseRun.started_at, CaseRun.id)).all()
     return next((other for other in earlier if not lifecycle.held_by_the_dead(other)), None)
 
 
