@@ -220,6 +220,10 @@ def store_reused(*, session: Session, run: CaseRun, measurement: Measurement) ->
     return _finish(session, run, status=CaseRunState.DONE, detail=_apply_measurement(run, measurement))
 
 
+# The end of the event detail of a run that finish_alike finished (tools/bench counts them by it).
+FINISHED_WHEN_MEASURED = "(finished when it was measured)"
+
+
 def finish_alike(session: Session, case_run_id: int) -> list[int]:
     """Once a run has stored a new measurement, finish on it every queued grading run of the same content key, before
     any of their messages reaches a worker (a worker then drops each message as finished, `claim`). A class at the
@@ -234,8 +238,10 @@ def finish_alike(session: Session, case_run_id: int) -> list[int]:
     if (run is None or run.status != CaseRunState.DONE or run.purpose != CaseRunPurpose.GRADING
             or run.reused_from_id is not None or run.measurement_id is None or run.spec_key is None):
         return []
-    measurement_id, backend, precision = run.measurement_id, run.backend, run.precision
-    key = session.get(Measurement, measurement_id).content_key
+    backend, precision = run.backend, run.precision
+    measurement = session.get(Measurement, run.measurement_id)
+    session.expunge(measurement)  # read once: the commits below would expire it and reload it for every run
+    key = measurement.content_key
     candidates = session.execute(
         select(CaseRun.id, CaseRun.submission_id, CaseRun.spec).join(Submission, Submission.id == CaseRun.submission_id)
         .where(CaseRun.spec_key == run.spec_key, CaseRun.backend == backend, CaseRun.precision == precision,
@@ -252,8 +258,8 @@ def finish_alike(session: Session, case_run_id: int) -> list[int]:
         if other.status != CaseRunState.QUEUED:  # a worker claimed it meanwhile: it reuses the measurement itself
             session.rollback()
             continue
-        detail = _apply_measurement(other, session.get(Measurement, measurement_id))
-        if _finish(session, other, status=CaseRunState.DONE, detail=f"{detail} (finished when it was measured)"):
+        detail = _apply_measurement(other, measurement)
+        if _finish(session, other, status=CaseRunState.DONE, detail=f"{detail} {FINISHED_WHEN_MEASURED}"):
             moved.append(submission_id)
     return moved
 

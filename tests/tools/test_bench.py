@@ -25,7 +25,8 @@ CLASS = [{"stack": "embedded", "workers": 1, "slots": 2, "submissions": 20, "acc
           "graded": 17, "failed": 1, "lost": 1, "distinct_configs": 36, "two_factor": 2, "posting_s": 3.0,
           "total_s": 50.0, "per_submission_s": 2.5, "complete_s": 55.0, "warm_up_wait_s": 20.0,
           "profile": {"runs": {"runs": 171, "reused_at_admission": 110, "finished_when_measured": 10,
-                               "reused_in_worker": 30, "measured": 21, "measured_keys": 20, "measured_twice": 1, "failed_runs": 0, "case_s": 30.0,
+                               "reused_in_worker": 30, "measured": 21, "measured_keys": 20, "measured_twice": 1,
+                               "failed_runs": 0, "case_s": 30.0,
                                "first_measured_s": 0.5, "last_measured_s": 44.0, "grading_wait_median_s": 0.25,
                                "grading_wait_max_s": 3.0,
                                "per_worker": {"1": {"measured": 11, "case_s": 16.0, "reused": 14},
@@ -79,8 +80,8 @@ def test_tables_print_every_figure_beside_its_target():
     assert ("200 sheets, 40 configs on two CPU workers <= 40 s (redis-pg): MISSED by 460 s (12.5x the 40 s) "
             "(projected to 200: 500 s from 20) (1 LOST)") in text
     assert "the host's cores split among the workers" in text
-    assert ("runs 171 of 19 submissions: 110 reused at admission, 10 finished in the queue when their case was measured, "
-            "30 reused in a worker, 21 measured (20 distinct, "
+    assert ("runs 171 of 19 submissions: 110 reused at admission, "
+            "10 finished in the queue when their case was measured, 30 reused in a worker, 21 measured (20 distinct, "
             "1 measured again concurrently), 0 failed") in text
     assert "by worker: worker 1 11 (16.0 s), worker 2 10 (14.0 s)" in text
     assert "extension 11, 10 fresh, 20.0 = 9.0 + 8.5 + 2.5 s" in text

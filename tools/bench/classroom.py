@@ -18,6 +18,7 @@ import redis
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
+from grader.core.lifecycle import FINISHED_WHEN_MEASURED
 from grader.core.models import CaseRun, Event, Grade, Submission
 from grader.core.settings import settings
 from worker.warm_gate import OPENED
@@ -224,12 +225,12 @@ def _runs_profile(engine, ids: list[int], since: datetime, pids: dict[int, int])
     """The posted submissions' grading runs: reused at admission, reused in a worker, measured (and measured more than
     once), their case-process seconds, per worker; and how long the grades waited after the last run."""
     with Session(engine) as session:
-        runs = session.execute(select(CaseRun.id, CaseRun.reused_from_id, CaseRun.started_at, CaseRun.finished_at, CaseRun.wall_s,
-                                      CaseRun.content_key, CaseRun.worker_pid, CaseRun.status, CaseRun.name,
+        runs = session.execute(select(CaseRun.id, CaseRun.reused_from_id, CaseRun.started_at, CaseRun.finished_at,
+                                      CaseRun.wall_s, CaseRun.content_key, CaseRun.worker_pid, CaseRun.status, CaseRun.name,
                                       CaseRun.provenance)
                                .where(CaseRun.submission_id.in_(ids), CaseRun.purpose == "grading")).all()
-        fanned = set(session.scalars(select(Event.case_run_id).where(  # grader.core.lifecycle.finish_alike's
-            Event.submission_id.in_(ids), Event.detail.like("%(finished when it was measured)"))))
+        fanned = set(session.scalars(select(Event.case_run_id).where(  # the runs finish_alike finished
+            Event.submission_id.in_(ids), Event.detail.like(f"%{FINISHED_WHEN_MEASURED}"))))
         waits = session.execute(select(Submission.grading_at, Submission.graded_at)
                                 .where(Submission.id.in_(ids), Submission.graded_at.is_not(None))).all()
     measured = [r for r in runs if r.reused_from_id is None and r.started_at is not None and r.wall_s is not None]
