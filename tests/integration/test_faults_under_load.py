@@ -26,6 +26,7 @@ from sqlalchemy import func, select
 from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session
 
+from grader.core.lifecycle import FINISHED_WHEN_MEASURED
 from grader.core.models import CaseRun, Event, Grade, Submission, utcnow
 from tests import services
 from tests.factories import create_people, reference_sheet
@@ -126,11 +127,18 @@ def _kill_mid_case(db: Db, worker, artifacts: Path) -> tuple[CaseRun, object]:
 
 
 def _running_again(db: Db, victim: CaseRun) -> Event:
-    """The killed run's next claim (a 'running' event with a later try)."""
+    """The killed run's next claim (a 'running' event with a later try), or, where another run measured the same case
+    first while the killed one waited re-sent in the queue, its finishing there (grader.core.lifecycle.finish_alike:
+    a 'done' after its 'requeued', never claimed again)."""
     def found():
-        return next((e for e in db.events(case_run_id=victim.id, state="running")
-                     if e.detail and e.detail.endswith(f"try {victim.tries + 1}")), None)
-    return db.wait(found, f"case run {victim.id} running again")
+        mine = db.events(case_run_id=victim.id)
+        again = next((e for e in mine if e.state == "running" and e.detail
+                      and e.detail.endswith(f"try {victim.tries + 1}")), None)
+        requeued = next((e for e in mine if e.state == "requeued"), None)
+        finished = next((e for e in mine if e.state == "done" and requeued is not None and e.id > requeued.id
+                         and e.detail and FINISHED_WHEN_MEASURED in e.detail), None)
+        return again or finished
+    return db.wait(found, f"case run {victim.id} running again (or finished in the queue on another run's measurement)")
 
 
 def _wait_finished(db: Db, submission_ids: list[int], logs: Path) -> None:
