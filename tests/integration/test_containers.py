@@ -34,6 +34,7 @@ from pathlib import Path
 import httpx
 import pytest
 
+from rubric.scoring import SHEET_CASE_PREFIX
 from tests.factories import ROOT, reference_sheet
 from tests.services import free_port
 
@@ -46,6 +47,7 @@ BUILD_LIMIT_S = 3600  # a fresh machine: debootstrap, apt, pip and the worker's 
 WAIT_LIMIT_S = 900  # a state to be reached; no assertion about speed rides on it
 KILL_ATTEMPTS = 3  # forced sheets tried for a kill that lands mid-case (see the kill below)
 LONG_CASE_SUBSTEPS = 10  # the killed case: 1.5 s at dt=0.002, 750 steps of 10+ substeps (seconds on a CPU)
+EXTENSION_RUN = SHEET_CASE_PREFIX + "extension"  # the name a sheet's own extension case is stored under
 COURSE = "l03-ci"
 
 
@@ -328,7 +330,7 @@ def test_the_compose_stack_grades_through_tls_scales_recovers_and_keeps_its_data
 
         def running(forced=forced):
             rows = stack.sql(f"SELECT id, worker, tries FROM case_runs WHERE submission_id = {forced} "
-                             f"AND name = 'sheet.extension' AND status = 'running' AND worker IS NOT NULL")
+                             f"AND name = '{EXTENSION_RUN}' AND status = 'running' AND worker IS NOT NULL")
             return next(((run, worker, int(tries)) for run, worker, tries in rows
                          if any(h in worker for h in hostnames)), None)
         victim, holder, tries = _wait(running, f"the forced sheet's {long_case} in the middle of its case",

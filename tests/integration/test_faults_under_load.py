@@ -203,9 +203,9 @@ def _check_outcome(db: Db, submission_ids: list[int]) -> None:
             assert [s for s in mine if s != "requeued"] == ["queued", "done"] and run.reused_from_id is not None, (
                 run.id, mine, run.reused_from_id)
             assert resent == run.delivery - 1, (run.id, run.delivery, mine)
-            assert not resent or "(finished when it was measured)" in found[0], (run.id, mine, found)
             assert len(found) == 1 and ("(found when submitted)" in found[0]
-                                        or "(finished when it was measured)" in found[0]), (run.id, found)
+                                        or FINISHED_WHEN_MEASURED in found[0]), (run.id, found)
+            assert not resent or FINISHED_WHEN_MEASURED in found[0], (run.id, mine, found)
             continue
         assert mine.count("running") == run.tries, (run.id, run.tries, mine)
         assert mine.count("requeued") == run.delivery - 1, (run.id, run.delivery, mine)

@@ -226,8 +226,8 @@ def _runs_profile(engine, ids: list[int], since: datetime, pids: dict[int, int])
     once), their case-process seconds, per worker; and how long the grades waited after the last run."""
     with Session(engine) as session:
         runs = session.execute(select(CaseRun.id, CaseRun.reused_from_id, CaseRun.started_at, CaseRun.finished_at,
-                                      CaseRun.wall_s, CaseRun.content_key, CaseRun.worker_pid, CaseRun.status, CaseRun.name,
-                                      CaseRun.provenance)
+                                      CaseRun.wall_s, CaseRun.content_key, CaseRun.worker_pid, CaseRun.status,
+                                      CaseRun.name, CaseRun.provenance)
                                .where(CaseRun.submission_id.in_(ids), CaseRun.purpose == "grading")).all()
         fanned = set(session.scalars(select(Event.case_run_id).where(  # the runs finish_alike finished
             Event.submission_id.in_(ids), Event.detail.like(f"%{FINISHED_WHEN_MEASURED}"))))
