@@ -2,21 +2,21 @@
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import httpx
-import yaml
 
 from grader.core.states import SubmissionState
+from rubric import sheet_files
 
 
 def load_sheet(path: Path) -> dict:
-    """A sheet from .yaml/.yml or .json."""
+    """A sheet from .yaml/.yml or .json; rubric.sheet_files.SheetTextError naming the field of a number the service
+    cannot hold (as the sheet page's import does), before anything is sent."""
     text = path.read_text()
-    return yaml.safe_load(text) if path.suffix in (".yaml", ".yml") else json.loads(text)
+    return sheet_files.load_yaml(text) if path.suffix in (".yaml", ".yml") else sheet_files.load_json(text)
 
 
 class Client:

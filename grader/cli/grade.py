@@ -15,7 +15,7 @@ import yaml
 from pydantic import ValidationError
 
 from rubric import (Variant, VariantPoolError, cases_to_run, describe_errors, draw_pool, grade_sheet,
-                    load_rubric, load_variant_space, one_factor_findings, parse_sheet)
+                    load_rubric, load_variant_space, one_factor_findings, parse_sheet, sheet_files)
 from rubric.exports import grades_csv, gradescope_results
 from rubric.variants import complete_parameters
 from worker import run_cases
@@ -30,10 +30,12 @@ def run_cases_locally(specs, out_root: Path, mode: str, progress) -> dict:
 
 
 def _read(path: Path):
-    try:
-        return yaml.safe_load(path.read_text())  # YAML is a superset of JSON: one reader for both
-    except (OSError, yaml.YAMLError) as exc:
+    try:  # YAML is a superset of JSON: one reader for both, refusing numbers the service cannot hold by their field
+        return sheet_files.load_yaml(path.read_text())
+    except OSError as exc:
         raise click.ClickException(f"{path}: cannot read YAML/JSON: {exc}") from None
+    except sheet_files.SheetTextError as exc:
+        raise click.ClickException(f"{path}: cannot read YAML/JSON: {exc.field}: {exc.rule}") from None
 
 
 def load_sheet_data(sheet_file: Path, configs_dir: Path | None) -> dict:

@@ -149,12 +149,17 @@ def submit(sheet_file, url: str, token: str, backend: str | None, force_rerun: b
     # lazy: httpx and SQLAlchemy stay off `grader --help`; Client looked up per call (test_assignment_cli patches it)
     from grader.client import Client, load_sheet
     from grader.embedded import follow, summary
+    from rubric.sheet_files import SheetTextError  # lazy: numpy and pydantic (rubric) stay off `grader --help`
 
     client = Client(url, token)
     options = {"force_rerun": force_rerun, **({"backend": backend} if backend else {}),
                **({"assignment_id": assignment_id} if assignment_id else {})}
     try:
-        created = client.submit(load_sheet(sheet_file), **options)
+        sheet = load_sheet(sheet_file)
+    except SheetTextError as exc:  # nothing sent: the field and the rule, as the sheet page's import says them
+        raise click.ClickException(f"{sheet_file}: {exc.field}: {exc.rule}") from None
+    try:
+        created = client.submit(sheet, **options)
     except RuntimeError as exc:
         raise click.ClickException(str(exc)) from None
     progress = created["progress"]

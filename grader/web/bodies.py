@@ -1,5 +1,5 @@
-"""Request bodies are checked before any handler sees them: size (413), then for JSON: UTF-8, syntax, nesting depth
-and finite numbers (422), each error naming the field and the rule.
+"""Request bodies are checked before any handler sees them: size (413), then for JSON: UTF-8, syntax, nesting depth,
+finite numbers and integers Python can hold (422), each error naming the field and the rule.
 
 One ASGI middleware for every route, so no handler can forget a check and no recursive code ever walks an unchecked
 body: the depth and number checks below are iterative, and the one recursive step (the stdlib parser) turns too-deep
@@ -13,6 +13,8 @@ import math
 from typing import Any
 
 from starlette.datastructures import Headers
+
+from rubric import sheet_files
 
 MAX_ERRORS = 20
 
@@ -30,17 +32,18 @@ def json_problems(body: bytes, *, max_depth: int) -> list[dict[str, str]]:
         text = body.decode("utf-8")
     except UnicodeDecodeError as exc:
         return [{"field": "body", "rule": f"must be UTF-8 encoded JSON; byte {exc.start} is not valid UTF-8"}]
-    try:
-        value = json.loads(text)
+    try:  # an integer longer than Python's digit limit becomes a marker that value_problems names by its field
+        value = json.loads(text, parse_int=sheet_files.whole_number)
     except RecursionError:
         return [{"field": "body", "rule": f"must be nested at most {max_depth} levels deep"}]
-    except ValueError as exc:  # JSONDecodeError, and integers longer than Python's digit limit
+    except ValueError as exc:  # JSONDecodeError
         return [{"field": "body", "rule": f"must be valid JSON: {exc}"}]
     return value_problems(value, max_depth=max_depth)
 
 
 def value_problems(value: Any, *, max_depth: int) -> list[dict[str, str]]:
-    """Containers nested deeper than max_depth and NaN/Infinity (which Python's parser accepts), by path; iterative.
+    """Containers nested deeper than max_depth, NaN/Infinity (which Python's parser accepts) and integers past
+    rubric.sheet_files.MAX_INTEGER_DIGITS digits (which it cannot hold), by path; iterative.
 
     Paths are dotted from the body's top level (`sheet.answers.C5.pair_friction`), as in every other error."""
     problems: list[dict[str, str]] = []
@@ -50,6 +53,8 @@ def value_problems(value: Any, *, max_depth: int) -> list[dict[str, str]]:
         field = ".".join(path) or "body"
         if isinstance(item, float) and not math.isfinite(item):
             problems.append({"field": field, "rule": f"must be a finite number, got {item}"})
+        elif isinstance(item, sheet_files.TooLongInteger):
+            problems.append({"field": field, "rule": item.rule})
         elif isinstance(item, (dict, list)):
             if len(path) >= max_depth:
                 problems.append({"field": field, "rule": f"must be nested at most {max_depth} levels deep"})

@@ -142,3 +142,22 @@ def test_end_to_end_on_real_genesis(tmp_path):
     assert report.complete and report.total == report.max_total == load_rubric("L03").max_total
     assert (out / "cases" / "sheet.table_exercise" / "arrays.npz").exists()
     assert report.item("H2").backends["sheet.table_exercise"] == "cpu"
+
+
+def test_a_number_the_service_cannot_hold_is_refused_by_its_field_before_any_case_runs(tmp_path):
+    """`grader grade` reads sheets and config files as the sheet page's import does (issue 44, 6a): no traceback."""
+    sheet = tmp_path / "sheet.yaml"
+    sheet.write_text(REFERENCE_YAML.read_text().replace("samples: 75", "samples: " + "9" * 5000))
+    result = CliRunner().invoke(grade, [str(sheet), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 1, (result.output, result.exception)
+    assert f"{sheet}: cannot read YAML/JSON: answers.C1.samples: a whole number may have at most 4300 digits" \
+        in result.output
+    configs = tmp_path / "configs"
+    configs.mkdir()
+    (configs / "extension.yaml").write_text("kind: contact\nname: N5\ndt: 0.01\nsubsteps: 1:00\n")
+    data = copy.deepcopy(REFERENCE)
+    del data["configs"]["extension"]
+    base60 = CliRunner().invoke(grade, [str(write(tmp_path, data)), "--configs", str(configs),
+                                        "--out", str(tmp_path / "out")])
+    assert base60.exit_code == 1 and "extension.yaml: cannot read YAML/JSON: substeps: base-60 numbers" \
+        in base60.output, (base60.output, base60.exception)

@@ -35,7 +35,7 @@ from grader.services.identity import access
 from grader.services.setup import student_variants
 from grader.services.submissions import sheets
 from grader.services.errors import Invalid, field_errors
-from rubric import Variant, describe_errors, one_factor_findings
+from rubric import Variant, describe_errors, one_factor_findings, sheet_files
 from rubric.one_factor import role_baseline
 from rubric.rubrics import Rubric
 from rubric.scoring import lesson_run_specs
@@ -230,9 +230,10 @@ def _number(text: str, integer: bool) -> Any:
     text = text.strip()
     try:
         value = int(text) if integer or INTEGER_TEXT.match(text) else float(text)
-    except ValueError:
+    except ValueError:  # not a number, or more digits than Python reads (rubric.sheet_files.MAX_INTEGER_DIGITS)
         return text
-    return value if math.isfinite(value) else text
+    # An integer is finite whatever its size (math.isfinite of one past a float's range raised: a 500)
+    return value if isinstance(value, int) or math.isfinite(value) else text
 
 
 def _get(data: Any, path: str) -> Any:
@@ -515,27 +516,8 @@ def held_voids(*, session: Session, sheet: dict, part: str, book: Rubric, varian
 
 # --- YAML -------------------------------------------------------------------------------------------------------------
 
-# libyaml's C parser and emitter where PyYAML was built with it (the pure-Python ones took 0.4 s for the largest sheet
-# the caps admit); the same safe types either way.
-_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+# libyaml's C emitter where PyYAML was built with it (the pure-Python one is slower); the same safe types either way.
 _DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
-
-
-def _refuse_aliases_and_depth(text: str) -> str | None:
-    """Why the YAML's events may not be loaded, or None: no aliases (a few aliased lines can stand for gigabytes once
-    stored as JSON) and no nesting past YAML_MAX_DEPTH (the loader composes nested nodes recursively). One pass over
-    the parser's events, which builds nothing."""
-    depth = 0
-    for event in yaml.parse(text, Loader=_LOADER):
-        if isinstance(event, yaml.AliasEvent):
-            return "aliases (*name) are not accepted"
-        if isinstance(event, yaml.SequenceStartEvent | yaml.MappingStartEvent):
-            depth += 1
-            if depth > YAML_MAX_DEPTH + 1:
-                return f"nested more than {YAML_MAX_DEPTH} levels deep"
-        elif isinstance(event, yaml.SequenceEndEvent | yaml.MappingEndEvent):
-            depth -= 1
-    return None
 
 
 def _plain(value: Any, depth: int = 0) -> str | None:
@@ -556,13 +538,13 @@ def _plain(value: Any, depth: int = 0) -> str | None:
 
 
 def sheet_from_yaml(text: str) -> dict:
-    """A sheet from the YAML the API takes (`grader submit` reads the same); Invalid naming the file and the rule."""
-    try:
-        if (why := _refuse_aliases_and_depth(text)) is not None:
-            raise Invalid("invalid YAML", [{"field": "file", "rule": why}])
-        data = yaml.load(text, Loader=_LOADER)  # noqa: S506 - a safe loader, and its events were checked above
-    except (yaml.YAMLError, RecursionError) as exc:
-        raise Invalid("invalid YAML", [{"field": "file", "rule": f"not readable YAML: {exc}"}]) from None
+    """A sheet from the YAML the API takes (`grader submit` reads it with the same rubric.sheet_files); Invalid naming
+    the field (its path in the sheet, or the file) and the rule."""
+    try:  # no aliases (a few aliased lines can stand for gigabytes once stored as JSON), no deep nesting, and no
+        # number the service cannot hold (a 5000-digit integer, 1:59:59), each named by its path, before loading
+        data = sheet_files.load_yaml(text, max_depth=YAML_MAX_DEPTH, aliases=False)
+    except sheet_files.SheetTextError as exc:
+        raise Invalid("invalid YAML", [{"field": exc.field, "rule": exc.rule}]) from None
     if not isinstance(data, dict):
         raise Invalid("invalid YAML", [{"field": "file", "rule": "must hold one mapping: lesson, student, answers, "
                                                                   "configs"}])

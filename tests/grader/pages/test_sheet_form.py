@@ -383,3 +383,40 @@ def test_the_draft_saved_time_is_in_the_courses_zone_and_the_readers_language(ap
     chinese = api.client.post("/sheet/draft", headers={**api.as_("alice"), "Accept-Language": "zh-CN"},
                               data=form_fields(page.text))
     assert "年" in chinese.text and chinese.text.endswith(" IST"), chinese.text
+
+
+# --- issue 44, finding 6a: a number the service cannot hold is refused by its field, not a 500 ------------------------
+
+# (what the reference sheet's YAML says, what the imported file says instead, the field named, words of its rule)
+UNHOLDABLE = [
+    ("samples: 75", "samples: " + "9" * 5000, "answers.C1.samples", "at most 4300 digits, this one has 5000"),
+    ("samples: 75", "samples: 1:59:59", "answers.C1.samples", "base-60 numbers such as 1:59:59"),
+    ("samples: 75", "samples: " + ":".join(["1"] + ["59"] * 2500), "answers.C1.samples", "base-60 numbers"),
+    ("samples: 75", "samples: 0x" + "f" * 4000, "answers.C1.samples", "at most 4300 digits once written in decimal"),
+    ("pair_friction: 0.5", "pair_friction: " + ":".join(["1"] * 300) + ".5", "answers.C5.pair_friction",
+     "base-60 numbers"),
+]
+
+
+@pytest.mark.parametrize("where", ["free", "assignment"])
+def test_an_imported_number_the_service_cannot_hold_is_refused_by_its_field_and_the_draft_stays(api, where):
+    path = "/sheet" if where == "free" else f"/assignments/{create(api).json()['id']}/sheet"
+    reference = REFERENCE_YAML.read_text()
+    assert import_yaml(api, reference, path).status_code == 200
+    for old, new, field, rule in UNHOLDABLE:
+        assert old in reference
+        refused = import_yaml(api, reference.replace(old, new, 1), path)
+        assert refused.status_code == 422, (new[:30], refused.text[-800:])
+        top = _top(refused.text)
+        assert f'<a href="#f-{field}">' in top and html.escape(rule) in top, (new[:30], top)
+        assert 'name="answers.C1.samples" value="75"' in refused.text  # the draft as it was
+
+
+def test_a_typed_number_past_a_floats_range_is_refused_beside_its_field(api):
+    """400 digits: within the form's caps and Python's digit limit, past a float's range (math.isfinite raised)."""
+    page = import_yaml(api, REFERENCE_YAML.read_text())
+    for name in ("answers.C1.samples", "answers.C5.pair_friction", "configs.extension.substeps"):
+        checked = api.client.post("/sheet", headers=api.as_("alice"),
+                                  data={**form_fields(page.text, **{name: "9" * 400}), "action": "check"})
+        assert checked.status_code == 200, (name, checked.text[-800:])
+        assert f'<a href="#f-{name}">' in _top(checked.text), name
