@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 APT_CONTAINERS := apt-get install -y --no-install-recommends podman runc netavark aardvark-dns iptables uidmap \
 	debootstrap openssl
 
-.PHONY: run test check bench clean i18n
+.PHONY: run test test-fast check bench clean i18n
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -39,6 +39,13 @@ TEST_WORKERS ?= auto
 PYTEST_ARGS ?=
 test: $(STAMP)
 	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder $(PYTEST_ARGS)
+
+# The contributor's loop: the unit and service tests, without the integration modules (real Celery workers, the
+# compose stack, the browser walks) and without the tests marked slow (their own Genesis runs). `make test` stays the
+# whole suite, and is what CI runs.
+test-fast: $(STAMP)
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder -m 'not slow and not integration' \
+		--ignore=tests/integration $(PYTEST_ARGS)
 
 check: $(STAMP)
 	$(VENV)/bin/grader check --backend cpu --out out/check

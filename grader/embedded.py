@@ -13,11 +13,14 @@ import signal
 import subprocess
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import click
+import httpx
 
 from grader.client import Client, load_sheet
+from grader.core import warmth
 from grader.core.db import migrate, new_session
 from grader.core.states import CaseRunState, SubmissionState
 from grader.dispatch import EMBEDDED_QUEUES, resend
@@ -57,7 +60,10 @@ def start_worker(log_path: Path) -> subprocess.Popen:
 def start_api(host: str, port: int):
     import uvicorn  # lazy: only `grader run` serves; `grader submit` imports this module for follow/summary
 
-    server = uvicorn.Server(uvicorn.Config("grader.main:app", host=host, port=port, log_level="warning"))
+    # proxy_headers off: uvicorn would trust X-Forwarded-For from 127.0.0.1, where every local client comes from; the
+    # app trusts only settings.forwarded_allow_ips (none by default: grader.web.admission.TrustedProxies)
+    server = uvicorn.Server(uvicorn.Config("grader.main:app", host=host, port=port, log_level="warning",
+                                           proxy_headers=False))
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()
     while not server.started:
@@ -73,9 +79,51 @@ def reconcile_forever(stop: threading.Event) -> None:
             resend(find_and_requeue(session=session))
 
 
+def show_warm_up(worker: subprocess.Popen, *, poll_s: float = 0.5, every_s: float = 30.0,
+                 finished: Callable[[], bool] = lambda: False) -> None:
+    """Say what the embedded worker does before it takes its first case, until it does (or `finished()`: a sheet
+    whose runs were all reused needs no warm slot): compiling the simulation kernels (first run on a machine,
+    minutes), then warming its case slots (seconds). A line when the phase changes, and one every `every_s` while it
+    lasts, so a long first run is never silent."""
+    said, said_at, started = None, 0.0, time.monotonic()
+    while worker.poll() is None and not finished():
+        compiling = warmth.compiling()
+        workers = warmth.live()
+        mine = next((w for w in workers or () if w.name.startswith("embedded@")), None)
+        if workers is None or (mine is not None and mine.consuming):
+            return
+        if compiling is not None:
+            elapsed = time.time() - compiling.started_at
+            why = "first run on this machine" if compiling.first else "new engine version or backend"
+            phase = f"compiling the simulation kernels ({why}, about {_minutes(compiling.estimate_s)}; once per machine)"
+            progress = (f"{elapsed:.0f} s of about {compiling.estimate_s:.0f} s" if elapsed <= compiling.estimate_s
+                        else f"{elapsed:.0f} s, longer than estimated (a busy machine compiles slower)")
+        elif mine is not None:
+            phase = f"warming {mine.slots} case slots (loading the kernels and building the lesson's scenes)"
+            progress = f"{mine.warm} of {mine.slots} warm"
+        else:
+            phase, progress = "starting the worker", f"{time.monotonic() - started:.0f} s"
+        now = time.monotonic()
+        if phase != said or now - said_at >= every_s:
+            click.echo(f"{phase} ... {progress}" if phase == said else f"{phase} ...")
+            said, said_at = phase, now
+        time.sleep(poll_s)
+
+
+def _finished(client, submission_id: int) -> bool:
+    try:
+        return client.submission(submission_id)["status"] in (SubmissionState.GRADED, SubmissionState.FAILED)
+    except (RuntimeError, httpx.HTTPError):  # a refused or failed look: `follow`, next, waits out and reports it
+        return False
+
+
+def _minutes(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 90 else f"{seconds / 60:.0f} minutes"
+
+
 def follow(client, submission_id: int, total: int) -> dict:
     """Progress bar until failed, or graded with its lab check stored."""
-    with click.progressbar(length=total, label="measuring cases", show_pos=True) as bar:
+    with click.progressbar(length=total, label=f"measuring {total} cases", show_pos=True) as bar:
         shown = 0
 
         def update(state: dict) -> None:
@@ -141,6 +189,7 @@ def run(*, host: str, port: int, sheet: Path, exit_after_grading: bool) -> int:
         client = Client(url, tokens["student"])
         created = client.submit(load_sheet(sheet))
         click.echo(f"submitted {sheet} as submission {created['id']} ({created['progress']['total']} case runs)")
+        show_warm_up(worker, finished=lambda: _finished(client, created["id"]))
         state = follow(client, created["id"], created["progress"]["total"])
         summary(client, created["id"], state, url, sign_in_link=f"{url}{sign_in_links.PATH}{link}")
         if not exit_after_grading:

@@ -21,6 +21,7 @@ from rubric import parse_case
 from rubric.cases import BASELINE_CASES
 
 from .errors import EXIT_ERROR
+from .kernel_cache import compile_once
 
 
 def _redirect(stdout_path: str, stderr_path: str) -> None:
@@ -47,7 +48,7 @@ WARM_UP_CASES = ("N1", "friction-baseline", "N2", "N3", "N4", "N5")
 WARM_UP_DONE = "warm case process warmed up"  # the line it writes to the worker's log when done
 
 
-def warm_up(backend: str, reuse: bool) -> dict:
+def warm_up(backend: str, reuse: bool, *, said: str = WARM_UP_DONE) -> dict:
     """Build and run the lesson's scene structures (WARM_UP_CASES) on `backend` into a folder removed after, before any
     case: Genesis imported and initialised, kernels loaded, and (with reuse) every scene kept for the first cases. What
     it did, or why it failed, goes to its stderr, the worker's own log (one WARM_UP_DONE line); a real case never
@@ -69,13 +70,16 @@ def warm_up(backend: str, reuse: bool) -> dict:
                 statuses[name] = "raised"
     outcome = ", ".join(f"{name} exit {status}" for name, status in statuses.items())
     seconds = time.perf_counter() - started
-    print(f"{WARM_UP_DONE} on {backend} in {seconds:.1f} s ({outcome}; pid {os.getpid()})", file=sys.stderr,
+    print(f"{said} on {backend} in {seconds:.1f} s ({outcome}; pid {os.getpid()})", file=sys.stderr,
           flush=True)
     return {"warm_up_s": round(seconds, 3), "ok": all(status == 0 for status in statuses.values())}
 
 
 def main(reply_fd: int, warm_up_backend: str | None = None, reuse: bool = False) -> int:
     signal.signal(signal.SIGTERM, _exit_on_sigterm)
+    if warm_up_backend:
+        # Before Genesis is imported here: on a fresh machine one slot compiles the kernels, the others wait and load.
+        compile_once(warm_up_backend)
     # lazy: worker.engine only inside the case process; parents import this module for WARM_UP_DONE
     from .engine import run_case_in_genesis
 

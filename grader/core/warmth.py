@@ -21,13 +21,14 @@ import redis
 
 from grader.core.settings import settings
 
-__all__ = ["RECORD_TTL_S", "RENEW_S", "WorkerWarmth", "forget", "last_warm_up_s", "live", "record",
-           "record_warm_up", "warm_backends"]
+__all__ = ["RECORD_TTL_S", "RENEW_S", "Compiling", "WorkerWarmth", "compiling", "compiling_done", "forget",
+           "last_warm_up_s", "live", "record", "record_compiling", "record_warm_up", "warm_backends"]
 
 RENEW_S = 5.0  # a worker renews its record this often
 RECORD_TTL_S = 3 * RENEW_S  # and it counts for this long after its last renewal (a killed worker drops out)
 _PREFIX = "grader:warmth:"
 _LAST = _PREFIX + "last-warm-up"
+_COMPILING = _PREFIX + "compiling"
 
 
 @dataclass(frozen=True)
@@ -146,3 +147,56 @@ def warm_backends(workers: list[WorkerWarmth]) -> tuple[set[str], set[str]]:
     warm = {q for w in workers if w.consuming for q in w.queues}
     warming = {q for w in workers if not w.consuming for q in w.queues} - warm
     return warm, warming
+
+
+@dataclass(frozen=True)
+class Compiling:
+    """A case process compiling the lesson's simulation kernels into the machine's kernel cache (worker.kernel_cache:
+    one process per machine does it, the other slots wait for it): since when (epoch s), and how long it should take
+    (the last compile on this machine, or a first-run estimate)."""
+
+    backend: str
+    started_at: float
+    estimate_s: float
+    pid: int
+    first: bool = False  # no compile finished on this machine before: the estimate is the first-run one
+
+
+def record_compiling(state: Compiling) -> None:
+    """Store (or renew) the compile's record; it lapses RECORD_TTL_S after the last call, so a killed compile drops out."""
+    body = json.dumps(asdict(state))
+    if _kind() == "redis":
+        with contextlib.closing(_redis()) as client:
+            client.set(_COMPILING, body, ex=int(RECORD_TTL_S))
+    elif _kind() == "filesystem":
+        _folder().mkdir(parents=True, exist_ok=True)
+        temp = _folder() / f"compiling.{os.getpid()}.tmp"
+        temp.write_text(body)
+        temp.replace(_folder() / "compiling")
+
+
+def compiling_done() -> None:
+    if _kind() == "redis":
+        with contextlib.closing(_redis()) as client:
+            client.delete(_COMPILING)
+    elif _kind() == "filesystem":
+        (_folder() / "compiling").unlink(missing_ok=True)
+
+
+def compiling() -> Compiling | None:
+    """The compile going on now, if a live process renewed its record within RECORD_TTL_S; else None."""
+    raw = None
+    if _kind() == "redis":
+        with contextlib.closing(_redis()) as client:
+            raw = client.get(_COMPILING)
+    elif _kind() == "filesystem":
+        path = _folder() / "compiling"
+        with contextlib.suppress(OSError):
+            if time.time() - path.stat().st_mtime <= RECORD_TTL_S:
+                raw = path.read_text()
+    if raw is None:
+        return None
+    try:
+        return Compiling(**json.loads(raw))
+    except (ValueError, TypeError):
+        return None
