@@ -10,7 +10,7 @@ from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
 
 from grader.web import errors, logs
-from grader.web.admission import BodyDeadline, ClientLimit, InFlightLimit, lifespan
+from grader.web.admission import BodyDeadline, ClientLimit, InFlightLimit, TrustedProxies, lifespan
 from grader.web.fresh import FreshReads
 from grader.web.headers import SecurityHeaders, docs_policy
 from grader.api.main import api_router
@@ -53,8 +53,9 @@ def swagger_ui() -> HTMLResponse:
 
 logs.install()  # no sign-in link's secret in the access log, whichever server runs the app
 
-# Outermost last: headers on every answer; then the per-client cap; then the whole body within its deadline; only
-# then an admission slot; then the 304 from memory; then grader.web.errors' BodyGuard checks the body.
+# Outermost last: the client's address (forwarded only by a trusted proxy); headers on every answer; then the
+# per-client cap; then the whole body within its deadline; only then an admission slot; then the 304 from memory;
+# then grader.web.errors' BodyGuard checks the body.
 errors.install(app, max_bytes=settings.max_body_bytes, max_depth=settings.max_json_depth, page_error=page_errors.page_error)
 page_errors.install(app)
 # Innermost of these: a conditional read of an unchanged complete report answered 304 from the validator store,
@@ -65,6 +66,7 @@ app.add_middleware(BodyDeadline, deadline_s=settings.body_deadline_s, max_bytes=
                    page_error=early_page_error)
 app.add_middleware(ClientLimit, limit=lambda: settings.client_max_in_flight, page_error=early_page_error)
 app.add_middleware(SecurityHeaders)
+app.add_middleware(TrustedProxies, trusted=lambda: settings.forwarded_allow_ips)
 app.include_router(api_router)
 app.include_router(metrics_router)
 app.include_router(pages_router)

@@ -108,7 +108,12 @@ def test_the_api_is_reached_only_through_a_tls_and_buffering_proxy(compose):
     services = compose["services"]
     api, proxy = services["api"], services["proxy"]
     assert "ports" not in api, "the API is published only through the proxy"
-    assert api["environment"]["FORWARDED_ALLOW_IPS"]  # per-client limits count clients, not the proxy
+    # Per-client limits count clients, not the proxy: X-Forwarded-For is trusted from the proxy's address only.
+    import ipaddress
+
+    subnet = ipaddress.ip_network(compose["networks"]["default"]["ipam"]["config"][0]["subnet"])
+    proxy_address = proxy["networks"]["default"]["ipv4_address"]
+    assert api["environment"]["FORWARDED_ALLOW_IPS"] == proxy_address and ipaddress.ip_address(proxy_address) in subnet
     assert proxy["image"].startswith("nginx:") and {"443:443", "80:80"} <= set(proxy["ports"])
     assert proxy["depends_on"]["api"]["condition"] == "service_healthy"
     config_mount = next(v for v in proxy["volumes"] if v.endswith(":/etc/nginx/nginx.conf:ro"))

@@ -71,8 +71,13 @@ class Settings(BaseSettings):
     # admission slots: stalled bodies once held every slot and /v1/health timed out.
     body_deadline_s: float = Field(10.0, gt=0, le=300)
     # Requests one client address may have in flight at once (429 beyond), from arrival to answer. Behind a proxy,
-    # uvicorn must trust its X-Forwarded-For (FORWARDED_ALLOW_IPS), or every client counts as the proxy.
+    # the app must trust its X-Forwarded-For (FORWARDED_ALLOW_IPS below), or every client counts as the proxy.
     client_max_in_flight: int = Field(20, ge=1, le=10_000)
+    # The proxies in front of the API (comma-separated addresses or networks, "*" for any): only a request from one
+    # of them has its client address and scheme taken from X-Forwarded-For / X-Forwarded-Proto
+    # (grader.web.admission.TrustedProxies), for every per-address limit and the access log. Empty, the embedded
+    # default: none, so a client on loopback cannot name other addresses to escape them. The variable uvicorn reads.
+    forwarded_allow_ips: Annotated[list[str], NoDecode] = Field(default_factory=list)
     # Per API token, in the `limits` notation ("10/minute", "100/hour"): each submission queues real Genesis runs.
     rate_limit_submissions: str = "10/minute"
     # Where the counts live: memory:// for one API process (embedded); redis://... when several API processes serve.
@@ -128,7 +133,7 @@ class Settings(BaseSettings):
         parse(value)  # raises ValueError naming the bad notation
         return value
 
-    @field_validator("outbound_allowed_hosts", mode="before")
+    @field_validator("outbound_allowed_hosts", "forwarded_allow_ips", mode="before")
     @classmethod
     def _comma_separated(cls, value):
         return [x.strip() for x in value.split(",") if x.strip()] if isinstance(value, str) else value

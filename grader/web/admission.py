@@ -14,6 +14,7 @@ import anyio.to_thread
 from starlette.datastructures import Headers
 from starlette.requests import Request
 from starlette.responses import Response
+from uvicorn.middleware.proxy_headers import ProxyHeadersMiddleware
 
 from grader.web.bodies import replaying
 from grader.web.errors import API_PREFIX, error
@@ -80,11 +81,32 @@ class BodyDeadline:
         await self.app(scope, replaying(b"".join(chunks), receive), send)
 
 
+class TrustedProxies:
+    """The client's address and scheme from X-Forwarded-For / X-Forwarded-Proto, only for a request that comes from
+    one of `trusted()` (settings.forwarded_allow_ips: the proxies in front of the API); any other request keeps the
+    address it came from, whatever it claims. Nothing is trusted by default: a client on loopback once named 25
+    addresses in 25 wrong sign-ins and was refused none. The rule is uvicorn's ProxyHeadersMiddleware (the rightmost
+    forwarded address that is no trusted proxy), applied by the app so that it holds under any server; the embedded
+    service starts uvicorn with its own handling off (grader.embedded.start_api). Read per request, as ClientLimit's."""
+
+    def __init__(self, app, *, trusted: Callable[[], list[str]]):
+        self.app, self.trusted = app, trusted
+        self._built: tuple[tuple[str, ...], ProxyHeadersMiddleware] | None = None
+
+    async def __call__(self, scope, receive, send):
+        hosts = tuple(self.trusted())
+        if not hosts or scope["type"] != "http":
+            return await self.app(scope, receive, send)
+        if self._built is None or self._built[0] != hosts:
+            self._built = (hosts, ProxyHeadersMiddleware(self.app, trusted_hosts=list(hosts)))
+        await self._built[1](scope, receive, send)
+
+
 class ClientLimit:
     """At most `limit()` requests in flight per client address (429 beyond), counted from arrival, so one client
     cannot fill the body-reading stage or the admission slots for everyone. Behind a proxy the address is the one
-    uvicorn takes from X-Forwarded-For (--forwarded-allow-ips), or every client would share the proxy's. The limit
-    is read per request, so a test of many clients behind one in-process address can raise it."""
+    TrustedProxies takes from X-Forwarded-For, or every client would share the proxy's. The limit is read per
+    request, so a test of many clients behind one in-process address can raise it."""
 
     def __init__(self, app, *, limit: Callable[[], int], page_error: PageError):
         self.app, self.limit, self.page_error = app, limit, page_error

@@ -22,7 +22,7 @@ def _page(request: Request, user, link, refusal: str | None, code: int = status.
 
 
 def client_address(request: Request) -> str:
-    """The client's address as uvicorn gives it (behind a proxy: from X-Forwarded-For, --forwarded-allow-ips)."""
+    """The client's address (behind a trusted proxy, from its X-Forwarded-For: grader.web.admission.TrustedProxies)."""
     return request.client.host if request.client else "unknown"
 
 
