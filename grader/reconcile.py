@@ -2,6 +2,10 @@
 
 - running, but no live worker holds it (its worker was killed; Celery's remote control says which tasks each live
   worker holds): back to queued with a new delivery number, re-sent, without waiting for the lease;
+- running on a host whose worker stopped beating: no worker of that host answered and none renewed its record in the
+  broker's warmth store (grader.core.warmth: every worker renews it every few seconds, busy or not) within its
+  lifetime. A container SIGKILLed, or removed, is such a host: its run is re-queued within a pass or two of the kill,
+  not at its lease (17 minutes, issue 46);
 - queued, but its queue is empty on the broker and no worker holds it, or the broker lost every message (the marker
   `grader.dispatch.broker_kept_marker` left on it is gone: a restart without persistence): re-sent at once, and so
   are pending gradings;
@@ -19,13 +23,16 @@ A rocm/cuda case run with no worker of its kind is simply re-sent to the same qu
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
+from pathlib import Path
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from grader.core import lifecycle
+from grader.core import lifecycle, warmth
+from grader.core.variants import pool_runs
 from grader.dispatch import grade_held
 from grader.core.models import CaseRun, Event, Grade, Submission, utcnow
 from grader.services.lti import outbox as lti_outbox
@@ -46,6 +53,7 @@ UNKNOWN_RETRY_S = 2.0
 class Resend:
     case_runs: list[tuple[int, int, str]] = field(default_factory=list)  # (id, delivery, backend)
     were_running: set[int] = field(default_factory=set)  # ids among case_runs whose worker died: they go first
+    pool_runs: set[int] = field(default_factory=set)  # ids among case_runs measuring a variant pool: they go last
     gradings: list[int] = field(default_factory=list)
     scores: list[lti_outbox.OutboxPass] = field(default_factory=list)  # sent to the LMS gradebooks in this pass
 
@@ -54,11 +62,13 @@ def _host(worker_name: str) -> str:
     return worker_name.split("@", 1)[-1]
 
 
-def orphaned(session: Session, now: datetime, liveness, broker_lost: bool = False) -> list[tuple[CaseRun, str]]:
+def orphaned(session: Session, now: datetime, liveness, broker_lost: bool = False,
+             beating: set[str] | None = None) -> list[tuple[CaseRun, str]]:
     """Runs no live worker holds, by the broker's answer (`grader.dispatch.held_tasks`), with the reason.
 
     broker_lost: the broker lost every message (`grader.dispatch.broker_kept_marker`), so no queued run's message
-    can be trusted to be there, however full its queue is again."""
+    can be trusted to be there, however full its queue is again.
+    beating: the hosts with a worker whose warmth record is live (`beating_hosts`); None where it is not known."""
     held_by, depths = liveness
     held = set().union(*held_by.values()) if held_by else set()
     hosts = {_host(name) for name in held_by}
@@ -70,6 +80,9 @@ def orphaned(session: Session, now: datetime, liveness, broker_lost: bool = Fals
         # and is left to its lease.
         if (run.id, run.delivery) not in held and run.worker in hosts:
             found.append((run, f"no live worker holds it (worker {run.worker} pid {run.worker_pid} is gone)"))
+        elif run.worker not in hosts and beating is not None and run.worker not in beating:
+            found.append((run, f"its worker stopped beating (no worker on {run.worker} answered or renewed its "
+                               f"record for over {warmth.RECORD_TTL_S:.0f} s)"))
     # After a loss no queued run's message is trusted, however young: a duplicate is dropped as stale when claimed.
     queued = select(CaseRun).where(CaseRun.status == CaseRunState.QUEUED, CaseRun.queued_at < (now if broker_lost else grace))
     for run in session.scalars(queued.with_for_update(skip_locked=True)).all():
@@ -102,17 +115,47 @@ def _lost_gradings(session: Session, query, now: datetime, liveness, broker_lost
     return found
 
 
+def _last_pass_file() -> Path:
+    return settings.data_dir.absolute() / "reconciler" / "last-pass"
+
+
+def mark_pass(now: float | None = None) -> None:
+    """A pass finished: its time goes to a file of this host's (the reconciler container's health check reads it)."""
+    path = _last_pass_file()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(f"{time.time() if now is None else now:.3f}")
+
+
+def last_pass_age_s(now: float | None = None) -> float | None:
+    """Seconds since this host's reconciler last finished a pass; None if it never did."""
+    try:
+        return (time.time() if now is None else now) - float(_last_pass_file().read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def beating_hosts() -> set[str] | None:
+    """The hosts with a worker that renewed its warmth record within its lifetime; None where the broker keeps no
+    records or did not answer."""
+    try:
+        workers = warmth.live()
+    except Exception:  # noqa: BLE001 - a broker that does not answer says nothing about heartbeats: leases decide
+        return None
+    return None if workers is None else {_host(w.name) for w in workers}
+
+
 def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=None,
-                     broker_lost: bool = False) -> Resend:
+                     broker_lost: bool = False, beating: set[str] | None = None) -> Resend:
     """Mark what must be re-sent (committed), and return it for the caller to enqueue.
 
-    `liveness` is `grader.dispatch.held_tasks()`'s answer, or None where it is not knowable (leases only).
+    `liveness` is `grader.dispatch.held_tasks()`'s answer, or None where it is not knowable (leases only);
+    `beating` is `beating_hosts()`'s, asked with it (used only where liveness is known).
     `broker_lost`: the broker lost its messages; queued runs and pending gradings are re-sent without their leases."""
     now = now or utcnow()
     resend = Resend()
     lost = select(CaseRun).where(lifecycle.lease_expired(now))
     stale = select(CaseRun).where(lifecycle.queue_lease_expired(now))
-    todo = orphaned(session, now, liveness, broker_lost) if liveness is not None else []
+    todo = orphaned(session, now, liveness, broker_lost, beating) if liveness is not None else []
     todo += [(run, f"its process {run.worker_pid} on {lifecycle.HOST} is gone") for run in lifecycle.dead_here(session)
              if run.id not in {r.id for r, _ in todo}]
     for reason, query in (("lease expired", lost), ("message presumed lost", stale)):
@@ -123,6 +166,7 @@ def find_and_requeue(*, session: Session, now: datetime | None = None, liveness=
             resend.were_running.add(run.id)
         lifecycle.requeue(session, run, reason)
         resend.case_runs.append((run.id, run.delivery, run.backend))
+    resend.pool_runs = pool_runs(session, [run.id for run, _ in todo])
     # A grade task is re-sent (grading happens exactly once whatever the duplicates) when it went with the broker, when
     # no live worker holds it and the grade queue is empty (its worker was killed holding it: the message waits in
     # the broker's unacknowledged set for the visibility timeout), or past its lease where liveness is not knowable.

@@ -97,17 +97,29 @@ def worker(queues: tuple[str, ...], loglevel: str) -> None:
 
 @click.command()
 @click.option("--every", type=float, default=0.0, help="Repeat every N seconds, pass start to pass start (0: once).")
-def reconcile(every: float) -> None:
+@click.option("--healthy-within", type=float, default=None, metavar="SECONDS",
+              help="Reconcile nothing: exit 0 if this host's reconciler finished a pass within SECONDS, else 1 (the "
+                   "container's health check).")
+def reconcile(every: float, healthy_within: float | None) -> None:
     """Re-send case runs left queued or running past their lease, and stuck gradings."""
     # lazy: SQLAlchemy stays off `grader --help`; and looked up per call (tests/grader/core/test_reconcile.py patches them)
     from grader.core.db import new_session
     from grader.dispatch import broker_kept_marker, held_tasks, resend
-    from grader.reconcile import UNKNOWN_RETRY_S, find_and_requeue
+    from grader.reconcile import UNKNOWN_RETRY_S, beating_hosts, find_and_requeue, last_pass_age_s, mark_pass
+
+    if healthy_within is not None:
+        age = last_pass_age_s()
+        if age is None or age > healthy_within:
+            said = "never finished a pass" if age is None else f"last finished a pass {age:.0f} s ago"
+            raise click.ClickException(f"unhealthy: the reconciler {said} (limit {healthy_within:g} s)")
+        click.echo(f"healthy: last pass {age:.0f} s ago")
+        return
 
     marker_left = lost_seen = False
     while True:
         started = time.monotonic()
         liveness = held_tasks()  # asked before reading the runs, so a task it reports held is never judged lost
+        beating = beating_hosts()  # likewise: a worker that claims a run after this is not judged by it
         broker_lost = lost_seen
         if liveness is not None and not settings.broker_url.startswith("filesystem"):
             kept = broker_kept_marker()
@@ -115,7 +127,8 @@ def reconcile(every: float) -> None:
             broker_lost, marker_left = broker_lost or (marker_left and kept is False), marker_left or kept is not None
         lost_seen = broker_lost and liveness is None  # kept for a pass that can act on it
         with new_session() as session:
-            todo = find_and_requeue(session=session, liveness=liveness, broker_lost=broker_lost)
+            todo = find_and_requeue(session=session, liveness=liveness, broker_lost=broker_lost, beating=beating)
+        mark_pass()
         resend(todo)
         if todo.case_runs or todo.gradings:
             click.echo(f"re-sent {len(todo.case_runs)} case runs, {len(todo.gradings)} gradings")

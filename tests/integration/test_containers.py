@@ -45,6 +45,7 @@ COMPOSE_FILES = ("docker-compose.yml", "docker/compose.ci.yml")
 API_IMAGE, WORKER_IMAGE = "localhost/l03-grader-api:ci", "localhost/l03-grader-worker-cpu:ci"
 BUILD_LIMIT_S = 3600  # a fresh machine: debootstrap, apt, pip and the worker's kernel warm-up
 WAIT_LIMIT_S = 900  # a state to be reached; no assertion about speed rides on it
+RERUN_LIMIT_S = 60  # a killed or removed worker's run claimed again within this (issue 46)
 KILL_ATTEMPTS = 3  # forced sheets tried for a kill that lands mid-case (see the kill below)
 LONG_CASE_SUBSTEPS = 10  # the killed case: 1.5 s at dt=0.002, 750 steps of 10+ substeps (seconds on a CPU)
 EXTENSION_RUN = SHEET_CASE_PREFIX + "extension"  # the name a sheet's own extension case is stored under
@@ -78,6 +79,14 @@ def _run(args: list[str], *, env: dict | None = None, timeout: float = 600, chec
         raise AssertionError(f"{' '.join(args)} exited {result.returncode}:\n{result.stdout[-4000:]}\n"
                              f"{result.stderr[-4000:]}")
     return result
+
+
+def _rerun_after(stack, run_id: int, since: datetime) -> float:
+    """Seconds from `since` (naive UTC) to the run's next claim: its first `running` event after it."""
+    (row,) = stack.sql(f"SELECT min(at) FROM events WHERE case_run_id = {run_id} AND state = 'running' "
+                       f"AND at > '{since.isoformat(sep=' ')}'")
+    assert row[0], f"case run {run_id} was never claimed again after {since}"
+    return (datetime.fromisoformat(row[0]) - since).total_seconds()
 
 
 def _wait(predicate, what: str, limit_s: float = WAIT_LIMIT_S, poll_s: float = 1.0):
@@ -254,6 +263,8 @@ def test_the_compose_stack_grades_through_tls_scales_recovers_and_keeps_its_data
         assert http.get("/v1/health").json()
     worker = stack.container("worker-cpu")
     _wait(lambda: stack.healthy(worker), "the worker's health check (celery inspect ping)")
+    # The reconciler's own health check (a pass finished within a minute), not the API image's HTTP one (issue 46).
+    _wait(lambda: stack.healthy(stack.container("reconciler")), "the reconciler's health check")
     sizes = {image: _image_size_mb(stack, image) for image in (API_IMAGE, WORKER_IMAGE)}
     print("image sizes: " + ", ".join(f"{image} {mb:.0f} MB" for image, mb in sizes.items()))
 
@@ -355,9 +366,53 @@ def test_the_compose_stack_grades_through_tls_scales_recovers_and_keeps_its_data
             print(f"attempt {attempt}: case run {victim} finished at {finished_at}, before the kill at {killed_at}")
             continue
         assert after[0] == "done" and int(after[1]) > tries, after
+        rerun_s = _rerun_after(stack, victim, killed_at)
+        print(f"case run {victim}: running again {rerun_s:.1f} s after the kill")
+        assert rerun_s <= RERUN_LIMIT_S, f"re-run {rerun_s:.1f} s after the kill (limit {RERUN_LIMIT_S} s)"
         break
     else:
         pytest.fail(f"no kill of {KILL_ATTEMPTS} landed in the middle of a case")
+
+    # A worker container removed mid-case (a host lost, `podman rm -f`): nothing restarts it and nothing of it answers;
+    # its heartbeat in the broker lapses and the reconciler re-queues its run, for the other worker (issue 46).
+    for attempt in range(1, KILL_ATTEMPTS + 1):
+        sheet = reference_sheet()
+        sheet["configs"]["extension"] = {"kind": "contact", "name": f"N5-gone-{attempt}", "dt": 0.002,
+                                         "substeps": LONG_CASE_SUBSTEPS + KILL_ATTEMPTS + attempt}
+        forced = _submit(stack, "prof", sheet, force_rerun=True)
+
+        def running(forced=forced):
+            rows = stack.sql(f"SELECT id, worker, tries FROM case_runs WHERE submission_id = {forced} "
+                             f"AND name = '{EXTENSION_RUN}' AND status = 'running' AND worker IS NOT NULL")
+            return next(((run, worker, int(tries)) for run, worker, tries in rows
+                         if any(h in worker for h in hostnames)), None)
+        victim, holder, tries = _wait(running, f"the forced sheet's N5-gone-{attempt} in the middle of its case",
+                                      poll_s=0.2)
+        container = next(name for host, name in hostnames.items() if host in holder)
+        removed_at = datetime.now(timezone.utc).replace(tzinfo=None)
+        stack.podman("rm", "-f", "-t", "0", container)
+        print(f"removed {container} ({holder}) while it ran case run {victim} (try {tries})")
+        _graded(stack, "prof", forced)
+        (after,) = stack.sql(f"SELECT status, tries, worker FROM case_runs WHERE id = {victim}")
+        assert stack.sql(f"SELECT count(*) FROM grades WHERE submission_id = {forced}") == [["1"]]
+        if int(after[1]) == tries:
+            print(f"attempt {attempt}: case run {victim} finished before its container was removed: {after}")
+            stack.compose("up", "-d", "--no-recreate", "--scale", "worker-cpu=2")
+            workers = stack.containers("worker-cpu")
+            hostnames = {stack.inspect(name)["Config"]["Hostname"]: name for name in workers}
+            for name in workers:
+                _wait(lambda name=name: stack.healthy(name) and stack.warm(name), f"{name} healthy and warm")
+            continue
+        assert after[0] == "done" and int(after[1]) > tries and after[2] != holder, after
+        detail = stack.sql(f"SELECT detail FROM events WHERE case_run_id = {victim} AND state = 'requeued' "
+                           f"AND at > '{removed_at.isoformat(sep=' ')}'")
+        assert any("its worker stopped beating" in d[0] for d in detail), detail
+        rerun_s = _rerun_after(stack, victim, removed_at)
+        print(f"case run {victim}: running again on {after[2]} {rerun_s:.1f} s after its container was removed")
+        assert rerun_s <= RERUN_LIMIT_S, f"re-run {rerun_s:.1f} s after the removal (limit {RERUN_LIMIT_S} s)"
+        break
+    else:
+        pytest.fail(f"no removal of {KILL_ATTEMPTS} landed in the middle of a case")
 
     # PostgreSQL restarted: nothing lost, the API answers again by itself and grades a new sheet.
     before = stack.sql("SELECT id, status FROM submissions ORDER BY id")

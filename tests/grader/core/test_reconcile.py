@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 from datetime import timedelta
 
@@ -156,7 +157,7 @@ def test_the_reconciler_reports_a_lost_broker_only_for_a_marker_it_had_left_and_
     monkeypatch.setattr(clock, "sleep", sleep)
     monkeypatch.setattr(dispatch, "held_tasks", lambda: ({}, {"cpu": 3}))
     monkeypatch.setattr(dispatch, "broker_kept_marker", kept)
-    monkeypatch.setattr(reconcile, "find_and_requeue", lambda *, session, liveness, broker_lost:
+    monkeypatch.setattr(reconcile, "find_and_requeue", lambda *, session, liveness, broker_lost, beating=None:
                         passes.append((clock.now, broker_lost)) or reconcile.Resend())
     monkeypatch.setattr(service, "time", clock)
     monkeypatch.setattr(settings, "broker_url", "redis://127.0.0.1:1/0")
@@ -205,3 +206,65 @@ def test_a_grade_task_no_live_worker_holds_is_resent_once_the_grade_queue_is_emp
         assert resend.gradings == [ids[1]]
         note = session.scalars(select(Event).where(Event.submission_id == ids[1]).order_by(Event.id.desc())).first()
         assert note.state == "completing" and "no live worker holds it" in note.detail, note.detail
+
+
+def test_a_run_on_a_host_whose_worker_stopped_beating_is_requeued_without_waiting_for_its_lease(api, tmp_path,
+                                                                                                  monkeypatch):
+    """Issue 46: a worker container SIGKILLed mid-case answers nothing, and its process ids are in another PID
+    namespace; its run waited for its lease (17 minutes). Every worker renews its record in the broker's warmth store
+    every few seconds, busy or not: a host with no live record and no answering worker is dead."""
+    import time as clock
+
+    from grader.core import warmth
+    from grader.core.db import new_session
+    from grader.core.models import CaseRun, Event, utcnow
+    from grader.core.settings import settings
+    from grader.reconcile import LIVENESS_GRACE_S, beating_hosts, find_and_requeue
+
+    sid = api.client.post("/v1/submissions", json={"sheet": reference_sheet()}, headers=api.as_("alice")).json()["id"]
+    liveness = ({"cpu-grade@alive": set()}, {"cpu": 0, "grade": 0})  # another host's worker answers
+    # The workers' records, in the embedded broker's store: the killed host's stopped RECORD_TTL_S + 1 s ago.
+    monkeypatch.setattr(settings, "data_dir", tmp_path)
+    monkeypatch.setattr(settings, "broker_url", "filesystem://")
+    for name in ("cpu-grade@alive", "cpu-grade@killed"):
+        warmth.record(warmth.WorkerWarmth(name=name, queues=("cpu",), slots=1, warm=1, started_at=clock.time(),
+                                          warm_s=1.0))
+    assert beating_hosts() == {"alive", "killed"}
+    with new_session() as session:
+        run = session.scalars(select(CaseRun).where(CaseRun.submission_id == sid)).first()
+        run.status, run.worker, run.worker_pid = "running", "killed", 7
+        run.started_at = utcnow() - timedelta(seconds=LIVENESS_GRACE_S + 5)
+        session.commit()
+        # Still beating (busy in a long case, too busy to answer): left alone.
+        assert find_and_requeue(session=session, liveness=liveness, beating=beating_hosts()).case_runs == []
+        record = tmp_path / "broker" / "warmth" / "cpu-grade@killed.json"
+        stale = clock.time() - warmth.RECORD_TTL_S - 1
+        os.utime(record, (stale, stale))
+        assert beating_hosts() == {"alive"}
+        # Without heartbeats known, the lease decides, as before.
+        assert find_and_requeue(session=session, liveness=liveness, beating=None).case_runs == []
+        resend = find_and_requeue(session=session, liveness=liveness, beating=beating_hosts())
+        assert resend.case_runs == [(run.id, 2, "cpu")] and resend.were_running == {run.id}
+        note = session.scalars(select(Event).where(Event.case_run_id == run.id).order_by(Event.id.desc())).first()
+        assert note.state == "requeued" and "its worker stopped beating" in note.detail, note.detail
+
+
+def test_the_reconciler_is_healthy_only_while_it_finishes_passes(api, tmp_path, monkeypatch):
+    """Issue 46: the reconciler container inherited the API's health check (an HTTP server it does not run) and was
+    never healthy. Its own: a pass finished within the limit."""
+    import time as clock
+
+    from grader.cli import service
+    from grader.core.settings import settings
+    from grader.reconcile import mark_pass
+
+    monkeypatch.setattr(settings, "data_dir", tmp_path)
+    never = CliRunner().invoke(service.reconcile, ["--healthy-within", "60"])
+    assert never.exit_code == 1 and "unhealthy: the reconciler never finished a pass" in never.output, never.output
+    monkeypatch.setattr(settings, "broker_url", "filesystem://")
+    assert CliRunner().invoke(service.reconcile, []).exit_code == 0  # one pass
+    healthy = CliRunner().invoke(service.reconcile, ["--healthy-within", "60"])
+    assert healthy.exit_code == 0 and healthy.output.startswith("healthy: last pass"), healthy.output
+    mark_pass(clock.time() - 90)
+    late = CliRunner().invoke(service.reconcile, ["--healthy-within", "60"])
+    assert late.exit_code == 1 and "last finished a pass 90 s ago" in late.output, late.output
