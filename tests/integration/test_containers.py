@@ -237,19 +237,23 @@ def stack(tmp_path_factory):
         for service in ("api", "worker-cpu", "proxy", "postgres"):
             logs = deployment.compose("logs", "--tail", "40", service, check=False)
             print(f"--- {service} (last lines)\n{logs.stdout[-3000:]}{logs.stderr[-1000:]}")
-        deployment.compose("down", "-v", "-t", "5", timeout=600, check=False)
-        if scaled := deployment.containers(every=True):
-            # podman-compose 1.6's `down` knows only the containers its files name, not those of `--scale`: it
-            # leaves them, and the network and volumes they hold. They are the project's own: removed here.
-            print(f"podman-compose down left {scaled}: removing them")
-            deployment.podman("rm", "-f", "--depend", "-t", "5", *scaled, check=False)
+        # The operator's guide's command (docs/operator.md): podman-compose 1.6's plain `down` knows only the
+        # containers its files name, not the replicas of `--scale`, which then keep the network and volumes;
+        # `--remove-orphans` removes every container labelled with the project first (issue 46).
+        deployment.compose("down", "-v", "--remove-orphans", "-t", "5", timeout=600, check=False)
+
+        def leftovers():
+            networks = deployment.podman("network", "ls", "-q", "--filter", f"label=io.podman.compose.project="
+                                         f"{deployment.project}").stdout.split()
+            volumes = [v for v in deployment.podman("volume", "ls", "-q").stdout.split()
+                       if v.startswith(deployment.project)]
+            return deployment.containers(every=True), networks, volumes
+
+        left = leftovers()
+        if any(left):  # cleaned up before the assertion, so that a failure here leaks nothing into later runs
+            deployment.podman("rm", "-f", "--depend", "-t", "5", *left[0], check=False)
             deployment.compose("down", "-v", "-t", "5", timeout=600, check=False)
-        left = deployment.containers(every=True)
-        networks = deployment.podman("network", "ls", "-q", "--filter", f"label=io.podman.compose.project="
-                                     f"{deployment.project}").stdout.split()
-        volumes = [v for v in deployment.podman("volume", "ls", "-q").stdout.split()
-                   if v.startswith(deployment.project)]
-        assert not (left or networks or volumes), f"left behind: {left} {networks} {volumes}"
+        assert not any(left), f"the guide's `down` left behind: {left}"
 
 
 def test_the_compose_stack_grades_through_tls_scales_recovers_and_keeps_its_data(stack):
