@@ -1,12 +1,21 @@
-"""LTI 1.3 over HTTP on loopback both ways: the tool under uvicorn on PostgreSQL, the platform lti1p3platform's
-(tests/grader/services/lti/test_lti.py's harness), a real cookie jar between them. Launches race here on a real database."""
+"""LTI 1.3 over HTTP on loopback both ways: the tool under uvicorn on PostgreSQL and on SQLite, the platform
+lti1p3platform's (tests/grader/services/lti/test_lti.py's harness), a real cookie jar between them. Launches race here
+on a real database, and a platform answers slowly (issue 44, finding 2): while a launch waits on its key set, or a
+score send on its gradebook, another course's student signs in (`POST /sign-in`) as fast as without it, and the tool
+holds no transaction (SQLite's write lock free, no PostgreSQL connection of the tool's idle in a transaction). The old
+launch used its nonce up, a write, before fetching the key set: a sign-in waited for the platform (a 500 after 31 s
+against a dripping one)."""
 
 from __future__ import annotations
 
 import os
+import sqlite3
+import statistics
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
+from datetime import timedelta
 
 import httpx
 import pytest
@@ -18,27 +27,48 @@ from tests.integration.helpers import at
 
 pytestmark = pytest.mark.integration
 
+# How long the slow platform takes to answer a request the tool waits on: several sign-ins long, a quick test still.
+DELAY_S = 2.0
+# Another course's sign-in while the tool waits on the platform may be this much slower than without it.
+SIGN_IN_SLOWER_BOUND_S = 0.5
+# A probe of what the tool holds runs while the platform holds its answer back, so what the tool holds across the
+# request stays held through it; a sign-in's own short transaction does not last this long.
+PROBE_S = 0.5
 
-@pytest.fixture(scope="module")
-def tool(tmp_path_factory):
-    """The platform (its `tool` the tool's URL) registered for course l03; `tokens` and `engine` of the tool's."""
+
+@pytest.fixture(scope="module", params=["postgresql", "sqlite"])
+def tool(request, tmp_path_factory):
+    """The platform (its `tool` the tool's URL, `backend` and `database_url` the tool's database) registered for
+    course l03; `tokens` of the tool's people, Olga among them (a student of course `other`); `engine` the tool's."""
     from sqlalchemy.orm import Session
 
-    from grader.core.db import make_engine, migrate
+    from grader.core.db import make_engine
     from grader.core.models import Course
+    from grader.services.identity import accounts
     from grader.services.lti import launch as lti
+    from tests.grader.conftest import migrated
 
-    data_dir = tmp_path_factory.mktemp("lti-tool")
+    data_dir = tmp_path_factory.mktemp(f"lti-tool-{request.param}")
     port = services.free_port()
     platform = Platform(tool=f"http://127.0.0.1:{port}")
     platform.people = {"lms-user-17": {"roles": [LEARNER], "name": "Ada Lovelace", "email": "ada@example.edu"}}
     # The operator's settings that let the tool fetch from this platform (loopback, plain http): its port only.
     allowed = {"OUTBOUND_ALLOW_HTTP": "true", "OUTBOUND_ALLOWED_HOSTS": f"127.0.0.1:{platform.server.server_port}"}
-    with services.postgres_database() as database_url, _allowing(allowed):
-        migrate(database_url)
+    with ExitStack() as cleanup:
+        cleanup.callback(platform.close)
+        if request.param == "sqlite":
+            database_url = f"sqlite:///{data_dir / 'grader.db'}"
+        else:
+            database_url = cleanup.enter_context(services.postgres_database())
+        cleanup.enter_context(_allowing(allowed))
+        migrated(database_url)
         engine = make_engine(database_url)
+        cleanup.callback(engine.dispose)
         with Session(engine) as session:
             platform.tokens = create_people(session, course="l03", other_course="other")
+            olga = accounts.get_or_create_user(session=session, name="olga", role="student",
+                                               course=accounts.get_or_create_course(session=session, name="other"))
+            platform.tokens["olga"] = accounts.create_token(session=session, user=olga)
             course = session.query(Course).filter_by(name="l03").one()
             lti.create_registration(session=session, course=course, issuer=platform.issuer, client_id=CLIENT_ID,
                                     deployment_ids=[DEPLOYMENT_ID], auth_login_url=f"{platform.url}/auth",
@@ -47,13 +77,9 @@ def tool(tmp_path_factory):
         env = dict(os.environ, DATABASE_URL=database_url, BROKER_URL=services.REDIS_URL, DATA_DIR=str(data_dir),
                    PYTHONPATH=str(services.ROOT), **allowed)
         api = services.start_api(env, port, data_dir / "api.log")
-        platform.engine = engine
-        try:
-            yield platform
-        finally:
-            services.stop(api)
-            engine.dispose()
-            platform.close()
+        cleanup.callback(services.stop, api)
+        platform.engine, platform.database_url, platform.backend = engine, database_url, request.param
+        yield platform
 
 
 @contextmanager
@@ -77,17 +103,90 @@ def _form(browser: httpx.Client, platform: Platform) -> dict:
 
 
 def _post(browser: httpx.Client, platform: Platform, fields: dict) -> httpx.Response:
-    return browser.post(f"{platform.tool}/lti/launch", data=fields,
+    return browser.post(f"{platform.tool}/lti/launch", data=fields, timeout=60,
                         headers={"Origin": platform.url, "Sec-Fetch-Site": "cross-site"})
 
 
-def test_a_student_launches_over_http_and_is_signed_in(tool):
+def _held(platform: Platform) -> list[str]:
+    """What of the tool's holds a transaction open while the platform has not answered yet: SQLite's write lock
+    (another connection cannot take it within PROBE_S), or PostgreSQL connections to the tool's database idle in a
+    transaction for PROBE_S and more."""
+    from sqlalchemy import text
+
+    if platform.backend == "sqlite":
+        conn = sqlite3.connect(platform.database_url.removeprefix("sqlite:///"), timeout=PROBE_S)
+        try:
+            conn.execute("BEGIN IMMEDIATE")
+            conn.rollback()
+            return []
+        except sqlite3.OperationalError as exc:
+            return [f"the write lock ({exc})"]
+        finally:
+            conn.close()
+    time.sleep(PROBE_S)
+    with platform.engine.connect() as conn:
+        return list(conn.scalars(text(
+            "SELECT state FROM pg_stat_activity WHERE datname = current_database() AND pid <> pg_backend_pid() "
+            "AND state LIKE 'idle in transaction%' AND clock_timestamp() - state_change >= :held"),
+            {"held": timedelta(seconds=PROBE_S)}))
+
+
+def _sign_in(platform: Platform) -> tuple[int, float]:
+    """Olga (another course's student) signs in with her token: the answer's status and how long it took."""
+    started = time.perf_counter()
+    page = httpx.post(f"{platform.tool}/sign-in", data={"token": platform.tokens["olga"], "next": "/submissions"},
+                      timeout=60)
+    return page.status_code, time.perf_counter() - started
+
+
+def _sign_ins_while(platform: Platform, work, probed: tuple[str, ...], slow: tuple[str, ...]):
+    """Olga's sign-ins before (`quiet`) and while `work()` runs in a thread (`during`: from the platform's first
+    request of `probed` on, until `work` is done); what the tool held as the platform got each request of `probed`;
+    and what `work` returned. Each request of `slow` is answered DELAY_S late."""
+    quiet = [_sign_in(platform) for _ in range(5)]
+    waiting, held, done = threading.Event(), [], {}
+
+    def probe(path: str) -> None:
+        if path.endswith(probed):
+            held.extend(f"{path}: {what}" for what in _held(platform))
+            waiting.set()
+
+    platform.on_request, platform.delays = probe, dict.fromkeys(slow, DELAY_S)
+    worker = threading.Thread(target=lambda: done.update(answer=work()))
+    try:
+        worker.start()
+        assert waiting.wait(30), "the platform got no request the tool waits on"
+        during = []
+        while worker.is_alive():
+            during.append(_sign_in(platform))
+        worker.join()
+    finally:
+        platform.on_request, platform.delays = (lambda path: None), {}
+    return quiet, during, held, done.get("answer")
+
+
+def _check_nothing_waited(platform: Platform, what: str, quiet: list, during: list, held: list) -> None:
+    usual = statistics.median(t for _, t in quiet)
+    slowest = max(t for _, t in during)
+    print(f"\n[{platform.backend}] {what}: Olga's sign-in {usual * 1000:.0f} ms without it (median of {len(quiet)}); "
+          f"during it {len(during)} sign-ins, slowest {slowest * 1000:.0f} ms, statuses "
+          f"{sorted({code for code, _ in during})}; held while the platform answered: {held or 'nothing'}")
+    assert [code for code, _ in quiet] == [303] * len(quiet)
+    assert [code for code, _ in during] == [303] * len(during)  # never a 500 ("database is locked")
+    assert slowest < usual + SIGN_IN_SLOWER_BOUND_S
+    assert held == []
+    assert len(during) >= 2  # the sign-ins overlapped the wait
+
+
+def test_a_launch_waiting_on_a_slow_key_set_signs_in_and_holds_up_no_other_sign_in(tool):
     with httpx.Client() as browser:
-        page = _post(browser, tool, _form(browser, tool))
-        assert page.status_code == 200, page.text
+        quiet, during, held, page = _sign_ins_while(tool, lambda: _post(browser, tool, _form(browser, tool)),
+                                                    probed=("/jwks",), slow=("/jwks",))
+        assert page.status_code == 200, page.text[-1000:]
         target = page.text.split('id="lti-continue" href="')[1].split('"')[0]
         assert target == "/courses/l03"
         assert browser.get(f"{tool.tool}{target}").status_code == 200  # the session cookie came with it
+    _check_nothing_waited(tool, f"a launch waiting {DELAY_S:.0f} s on the key set", quiet, during, held)
 
 
 def test_of_two_racing_posts_of_one_launch_one_signs_in(tool):
@@ -98,13 +197,13 @@ def test_of_two_racing_posts_of_one_launch_one_signs_in(tool):
     assert sorted(a.status_code for a in answers) == [200, 400], [a.text[-400:] for a in answers]
 
 
-def test_the_counted_score_reaches_the_gradebook_over_http(tool):
+def test_the_counted_score_reaches_a_slow_gradebook_holding_up_no_other_sign_in(tool):
     from sqlalchemy import select
     from sqlalchemy.orm import Session
 
-    from grader.core.models import Grade, LtiIdentity, Submission, utcnow
+    from grader.core.models import Grade, LtiIdentity, LtiScore, Submission, utcnow
 
-    with httpx.Client() as browser:
+    with httpx.Client() as browser:  # the launch tells the tool where the gradebook is
         assert _post(browser, tool, _form(browser, tool)).status_code == 200
     prof = {"Authorization": f"Bearer {tool.tokens['prof']}"}
     made = httpx.post(f"{tool.tool}/v1/courses/l03/assignments", headers=prof, json={
@@ -118,14 +217,23 @@ def test_the_counted_score_reaches_the_gradebook_over_http(tool):
                                 status="graded", assignment_id=aid, attempt=1, late_seconds=0)
         session.add(submission)
         session.flush()
-        session.add(Grade(submission_id=submission.id, rubric_lesson="L03", rubric_version="2", rubric_hash="x",
+        submission_id = submission.id
+        session.add(Grade(submission_id=submission_id, rubric_lesson="L03", rubric_version="2", rubric_hash="x",
                           total=4.5, max_total=10.0, report={}, completed_at=utcnow()))
         session.commit()
-    # The platform takes the tool's keys from its /lti/jwks over HTTP to grant the token.
-    sent = httpx.post(f"{tool.tool}/v1/courses/l03/lti/assignments/{aid}/scores", headers=prof, timeout=30)
+    # The platform takes the tool's keys from its /lti/jwks over HTTP to grant the token. Nothing is held at the
+    # token request, the line items' (read, then one made) or the score's, which is answered DELAY_S late: the old
+    # send held SQLite's write lock from the line item it stored to its end.
+    quiet, during, held, sent = _sign_ins_while(tool, lambda: httpx.post(
+        f"{tool.tool}/v1/courses/l03/lti/assignments/{aid}/scores", headers=prof, timeout=60),
+        probed=("/token", "/lineitems", "/scores"), slow=("/scores",))
     assert sent.status_code == 200 and [s["status"] for s in sent.json()] == ["sent"], sent.text
-    (item,) = tool.line_items
+    item = next(item for item in tool.line_items if item["resourceId"] == str(aid))
     assert item["scores"]["lms-user-17"]["scoreGiven"] == 4.5
+    with Session(tool.engine) as session:  # what was sent is stored once the platform answered
+        (score,) = session.scalars(select(LtiScore).where(LtiScore.submission_id == submission_id)).all()
+        assert (score.status, score.score_given, score.tries) == ("sent", 4.5, 1)
+    _check_nothing_waited(tool, f"a score send waiting {DELAY_S:.0f} s on the gradebook", quiet, during, held)
 
 
 # --- scores sent on their own: the real stack (Celery worker grading for real), `grader reconcile` running ----------

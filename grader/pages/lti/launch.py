@@ -103,8 +103,9 @@ class _Launch(MessageLaunch):
         return self._request.get_param(key)
 
     def fetch_public_key(self, key_set_url: str):
-        # Ours, not the library's: under the outbound policy, and refused without the platform's body.
-        return lti.fetch_key_set(key_set_url)
+        # Ours, not the library's: under the outbound policy, refused without the platform's body, and with the
+        # launch's transaction ended first (the nonce is used up after, in sign_in's).
+        return lti.fetch_key_set(key_set_url, session=self._tool_config.session)
 
 
 # pylti1p3's messages, by what they are about: the error page names that part of the launch.
@@ -115,8 +116,7 @@ _FIELDS = (("Missing state", "state"), ("State not found", "state"), ('"nonce" i
            ('"exp" claim', "id_token.exp"), ('"iat" claim', "id_token.iat"),
            ("Could not find issuer", "iss"), ("Could not find login hint", "login_hint"),
            ("Could not find registration", "iss"))
-_RULES = {"Invalid Nonce": "was not sent by this tool, or its launch was already used or has expired: start again "
-                           "from the LMS",
+_RULES = {"Invalid Nonce": lti.NONCE_REFUSED,
           "State not found": "does not match this browser's login: start again from the LMS (the tool must be "
                              "served over https for the state cookie to reach it)"}
 

@@ -209,31 +209,48 @@ class RegistrationConf(ToolConfAbstract):
         return Deployment().set_deployment_id(deployment_id) if known is not None else None
 
 
+# A launch whose nonce is not this tool's, already used or expired: what its error page says of the nonce.
+NONCE_REFUSED = "was not sent by this tool, or its launch was already used or has expired: start again from the LMS"
+
+
 class LaunchStates(SessionService):
     """pylti1p3's session, kept in the lti_launch_states table instead of a browser session: a launch's nonce must
-    be one this tool sent, with the launch's state, unused and unexpired, and is used up by checking it (pylti1p3's
-    own session only checks that a nonce was seen, so it would take a replayed launch). The browser's state cookie is
-    checked by pylti1p3 as well; nothing here vouches for a state without it."""
+    be one this tool sent, with the launch's state, unused and unexpired (pylti1p3's own session only checks that a
+    nonce was seen, so it would take a replayed launch). The check only reads: the launch then waits on the platform's
+    key set with no transaction open (`fetch_key_set`), and `take` uses the nonce up in the launch's short write
+    transaction after. The browser's state cookie is checked by pylti1p3 as well; nothing here vouches for a state
+    without it."""
 
     def __init__(self, session: Session, state: str | None = None):  # not the base's: no framework session here
         self.session, self.state = session, state
-        self.used: LtiLaunchState | None = None
+        self.found: LtiLaunchState | None = None  # the login the nonce checked out against, not yet used up
+        self.used: LtiLaunchState | None = None  # the same, once `take` used it up for this launch
 
     def save_nonce(self, nonce: str) -> None:
         pass  # stored with its state by `record_login`, once the login's redirect holds both
 
     def check_nonce(self, nonce: str) -> bool:
-        now = utcnow()
         row = self.session.scalar(select(LtiLaunchState).where(LtiLaunchState.nonce == nonce,
                                                                LtiLaunchState.state == (self.state or "")))
-        if row is None or row.used_at is not None or row.expires_at <= now:
-            return False
+        self.found = row if row is not None and row.used_at is None and row.expires_at > utcnow() else None
+        return self.found is not None
+
+    def take(self) -> LtiLaunchState:
+        """Uses up the login the nonce checked out against, for this launch only: refused (the nonce) when a launch
+        racing with the same nonce took it meanwhile, or it expired while the platform's keys were fetched."""
+        if self.found is None:
+            raise LaunchRefused("id_token.nonce", NONCE_REFUSED)
+        now = utcnow()
         # One statement: of two launches racing with one nonce, one changes the row.
-        taken = self.session.execute(update(LtiLaunchState).where(LtiLaunchState.id == row.id,
-                                                                  LtiLaunchState.used_at.is_(None))
+        taken = self.session.execute(update(LtiLaunchState).where(LtiLaunchState.id == self.found.id,
+                                                                  LtiLaunchState.used_at.is_(None),
+                                                                  LtiLaunchState.expires_at > now)
                                      .values(used_at=now)).rowcount
-        self.used = row if taken == 1 else None
-        return taken == 1
+        if taken != 1:
+            raise LaunchRefused("id_token.nonce", NONCE_REFUSED)
+        self.used = self.found
+        self.used.used_at = now
+        return self.used
 
     def check_state_is_valid(self, state: str, id_token_hash: str) -> bool:
         return False  # the cookie decides (pylti1p3's fallback), never an earlier launch of the same token
@@ -285,9 +302,19 @@ def record_login(*, session: Session, registration: LtiRegistration, state: str,
 
 # --- what the server fetches from a platform: through grader.core.outbound, errors in our words ----------------------
 
-def fetch_key_set(url: str) -> dict[str, Any]:
-    """The platform's JWKS at `url` (the registration's key_set_url), fetched under the outbound policy. Refused
-    with the URL and the status only: the platform's body never reaches the error page."""
+def release(session: Session) -> None:
+    """Ends `session`'s transaction before a request to a platform, committing what it wrote (a launch has written
+    at most the tool's first signing key by then): a platform may take its time to answer, and no transaction,
+    lock (SQLite's one write lock, a PostgreSQL row's) or pooled connection may wait with it. The next use of the
+    session starts a new transaction, which must re-read what a request running meanwhile could have changed."""
+    session.commit()
+
+
+def fetch_key_set(url: str, *, session: Session) -> dict[str, Any]:
+    """The platform's JWKS at `url` (the registration's key_set_url), fetched under the outbound policy with
+    `session`'s transaction ended first (`release`). Refused with the URL and the status only: the platform's body
+    never reaches the error page."""
+    release(session)
     try:
         response = outbound.session().get(url, headers={"Accept": "application/json"})
     except outbound.OutboundError as exc:
@@ -409,9 +436,11 @@ def sign_in(*, session: Session, registration: LtiRegistration, claims: dict[str
             states: LaunchStates) -> Landing:
     """The user a validated resource-link launch is, created or updated in the registration's course (role, name
     and email from the claims), and the assignment its link points to (custom parameter `assignment_id`). The
-    caller opens the page session and commits."""
-    if states.used is None or states.used.registration_id != registration.id:
+    caller opens the page session and commits. The launch's login is used up first (`LaunchStates.take`), in the
+    same transaction."""
+    if states.found is None or states.found.registration_id != registration.id:
         raise LaunchRefused("state", "was issued for another platform's login")
+    states.take()
     sub = claims.get("sub")
     if not isinstance(sub, str) or not sub or len(sub) > 255:
         raise LaunchRefused("id_token.sub", "must be the LMS user id, 1 to 255 characters")
@@ -587,34 +616,95 @@ class ScoreSent:
     error: str | None = None
 
 
+@dataclass(frozen=True)
+class _Due:
+    """One LMS student's counted score, as read before any request leaves: plain values, so that nothing of the
+    session is used while a platform answers."""
+
+    user_id: int
+    student: str
+    sub: str
+    submission_id: int
+    score: float
+    maximum: float
+    comment: str
+    unchanged: bool  # the last score sent on the known line item is this one, of this attempt
+
+
+@dataclass(frozen=True)
+class _Gradebook:
+    """One LMS course's part of a send, as read before any request leaves."""
+
+    context_id: int
+    name: str  # the LMS course's id
+    withheld: list[ScoreSent]
+    due: list[_Due]
+    registration: Registration | None = None  # pylti1p3's, with the tool's signing key (None: nothing due)
+    service: dict[str, Any] | None = None  # the grades service's endpoint and the scopes a token asks for
+    item_url: str | None = None  # the assignment's line item there, if known
+
+
 def send_scores(*, session: Session, assignment: Assignment, report_url: str = "") -> list[ScoreSent]:
     """Sends each LMS student's counted score for `assignment` to every LMS course of its registrations that gave a
     grades service: on the assignment's line item there (created once, then reused), only where the score or its
     attempt changed since the last send or that send failed. A student with any item still withheld from them gets
     no score (it would tell the hidden items). `report_url` is the report's URL with `{id}` for the submission.
-    Failures are stored with their error and tried again on the next call; the caller commits."""
+
+    What is due is read first and the transaction ended (`release`): no transaction, lock or pooled connection waits
+    on a platform. Each LMS course's outcome is then stored in a short transaction of its own, which reads its line
+    item again (`_record_scores`). Failures are stored with their error and tried again on the next call. Commits."""
+    assignment_id, title = assignment.id, assignment.title
+    gradebooks = _gradebooks(session, assignment, report_url)
+    release(session)
+    out: list[ScoreSent] = []
+    for book in gradebooks:
+        url, results = _post_scores(book, assignment_id, title) if book.due else (None, [])
+        _record_scores(session, book, assignment_id, url, results)
+        session.commit()
+        out += book.withheld + [ScoreSent(due.student, book.name, status, due.score, error)
+                                for due, status, error in results]
+    return out
+
+
+def _gradebooks(session: Session, assignment: Assignment, report_url: str) -> list[_Gradebook]:
+    """What `send_scores` sends, per LMS course: read in the caller's transaction, before any request leaves."""
     counted = {c.submission.student_id: c for c in counted_grades(session=session, assignment=assignment)}
     link_items = select(LtiLineItem.context_id).where(LtiLineItem.assignment_id == assignment.id)
-    contexts = session.scalars(select(LtiContext).join(LtiRegistration)
-                               .where(LtiRegistration.course_id == assignment.course_id,
-                                      LtiContext.lineitems_url.is_not(None) | LtiContext.id.in_(link_items))
-                               .order_by(LtiContext.id))
-    out: list[ScoreSent] = []
+    contexts = list(session.scalars(select(LtiContext).join(LtiRegistration)
+                                    .where(LtiRegistration.course_id == assignment.course_id,
+                                           LtiContext.lineitems_url.is_not(None) | LtiContext.id.in_(link_items))
+                                    .order_by(LtiContext.id)))
+    books = []
     for context in contexts:
+        item = session.scalar(select(LtiLineItem).where(LtiLineItem.context_id == context.id,
+                                                        LtiLineItem.assignment_id == assignment.id))
         people = session.scalars(select(LtiIdentity).where(LtiIdentity.registration_id == context.registration_id)
                                  .order_by(LtiIdentity.id))
-        due = []
+        withheld, due = [], []
         for identity in people:
             c = counted.get(identity.user_id)
             if c is None or not access.is_student(identity.user):
                 continue
             if grade_view(session=session, submission=c.submission, user=identity.user, report=False).hidden:
-                out.append(ScoreSent(identity.user.name, context.context_id, "withheld"))
+                withheld.append(ScoreSent(identity.user.name, context.context_id, "withheld"))
                 continue
-            due.append((identity, c))
-        if due:
-            out += _send_context(session, context, assignment, due, report_url)
-    return out
+            prior = None if item is None else session.scalar(
+                select(LtiScore).where(LtiScore.line_item_id == item.id, LtiScore.user_id == identity.user_id))
+            unchanged = (prior is not None and prior.status == "sent" and prior.score_given == c.counted
+                         and prior.score_maximum == c.max_total and prior.submission_id == c.submission.id)
+            comment = f"attempt {c.submission.attempt}" + (
+                f": {report_url.format(id=c.submission.id)}" if report_url else "")
+            due.append(_Due(identity.user_id, identity.user.name, identity.sub, c.submission.id, c.counted,
+                            c.max_total, comment, unchanged))
+        if not due:
+            books.append(_Gradebook(context.id, context.context_id, withheld, due))
+            continue
+        service = {"scope": token_scopes(context.scopes or [], line_item_known=item is not None),
+                   "lineitems": context.lineitems_url}
+        books.append(_Gradebook(context.id, context.context_id, withheld, due,
+                                RegistrationConf(session).library_registration(context.registration), service,
+                                item.url if item is not None else None))
+    return books
 
 
 def token_scopes(offered: list[str], *, line_item_known: bool) -> list[str]:
@@ -627,50 +717,71 @@ def token_scopes(offered: list[str], *, line_item_known: bool) -> list[str]:
     return [scope for scope in wanted if scope in offered]
 
 
-def _send_context(session: Session, context: LtiContext, assignment: Assignment, due, report_url: str):
-    item = session.scalar(select(LtiLineItem).where(LtiLineItem.context_id == context.id,
-                                                    LtiLineItem.assignment_id == assignment.id))
-    service_data = {"scope": token_scopes(context.scopes or [], line_item_known=item is not None),
-                    "lineitems": context.lineitems_url}
-    ags = AssignmentsGradesService(_connector(session, context.registration), service_data)
-    out, unreachable = [], None
-    for identity, c in due:
-        prior = None if item is None else session.scalar(
-            select(LtiScore).where(LtiScore.line_item_id == item.id, LtiScore.user_id == identity.user_id))
-        if (prior is not None and prior.status == "sent" and prior.score_given == c.counted
-                and prior.score_maximum == c.max_total and prior.submission_id == c.submission.id):
-            out.append(ScoreSent(identity.user.name, context.context_id, "unchanged", c.counted))
+# One student's outcome of a send: what was due, its status (sent | unchanged | failed) and the error.
+_Outcome = tuple[_Due, str, str | None]
+
+
+def _post_scores(book: _Gradebook, assignment_id: int, title: str) -> tuple[str | None, list[_Outcome]]:
+    """Posts one LMS course's changed scores (the token, the line item found or made, each score): no database here,
+    only what `_gradebooks` read. The line item's URL the scores went to (None: none was found or made), and each
+    student's status and error."""
+    ags = AssignmentsGradesService(_Connector(book.registration), book.service)
+    url, unreachable, results = book.item_url, None, []
+    for due in book.due:
+        if due.unchanged:
+            results.append((due, "unchanged", None))
             continue
         try:
             if unreachable is not None:  # one timeout per pass, not one per student: the rest wait for the retry
                 raise unreachable
-            if item is None:
-                found = ags.find_or_create_lineitem(
-                    LineItem().set_tag(f"grader-assignment-{assignment.id}").set_resource_id(str(assignment.id))
-                    .set_label(assignment.title).set_score_maximum(c.max_total))
-                item = LtiLineItem(context_id=context.id, assignment_id=assignment.id, url=found.get_id())
-                session.add(item)
-                session.flush()
-            comment = f"attempt {c.submission.attempt}" + (
-                f": {report_url.format(id=c.submission.id)}" if report_url else "")
-            ags.put_grade(LibraryGrade().set_score_given(c.counted).set_score_maximum(c.max_total)
+            if url is None:
+                url = ags.find_or_create_lineitem(
+                    LineItem().set_tag(f"grader-assignment-{assignment_id}").set_resource_id(str(assignment_id))
+                    .set_label(title).set_score_maximum(due.maximum)).get_id()
+                if not url:
+                    raise LtiException(f"{book.service['lineitems']} answered a line item without an id")
+            ags.put_grade(LibraryGrade().set_score_given(due.score).set_score_maximum(due.maximum)
                           .set_timestamp(utcnow().isoformat() + "Z").set_activity_progress("Completed")
-                          .set_grading_progress("FullyGraded").set_user_id(identity.sub).set_comment(comment),
-                          LineItem().set_id(item.url))
+                          .set_grading_progress("FullyGraded").set_user_id(due.sub).set_comment(due.comment),
+                          LineItem().set_id(url))
             status, error = "sent", None
         except (LtiException, requests.RequestException, AttributeError, KeyError, TypeError, ValueError) as exc:
             status, error = "failed", failure_text(exc)[:1000]
             if isinstance(exc, requests.RequestException):
                 unreachable = exc
-        out.append(ScoreSent(identity.user.name, context.context_id, status, c.counted, error))
-        if item is None:
-            continue  # no line item yet: nothing to hold the failure; the next call tries again
-        row = prior or LtiScore(line_item_id=item.id, user_id=identity.user_id, tries=0)
-        row.submission_id, row.score_given, row.score_maximum = c.submission.id, c.counted, c.max_total
-        row.status, row.error, row.tries, row.sent_at = status, error, (row.tries or 0) + 1, utcnow()
-        session.add(row)
+        results.append((due, status, error))
+    return url, results
+
+
+def _record_scores(session: Session, book: _Gradebook, assignment_id: int, url: str | None,
+                   results: list[_Outcome]) -> None:
+    """Stores one LMS course's outcome in a new transaction (the caller commits): the line item this send found or
+    made, and each score sent or failed on it. Read again, not taken from before the requests: where a launch named
+    another column for the assignment meanwhile, nothing is stored for the old one (the launch marked the scores
+    changed, so the next pass sends them to the new one)."""
+    if url is None:
+        return  # no line item yet: nothing to hold a failure; the next call tries again
+    fresh = {"populate_existing": True}  # the rows as they are now, not as the session saw them before the requests
+    item = session.scalar(select(LtiLineItem).where(LtiLineItem.context_id == book.context_id,
+                                                    LtiLineItem.assignment_id == assignment_id)
+                          .execution_options(**fresh))
+    if item is None:
+        item = LtiLineItem(context_id=book.context_id, assignment_id=assignment_id, url=url)
+        session.add(item)
         session.flush()
-    return out
+    elif item.url != url:
+        return
+    now = utcnow()
+    for due, status, error in results:
+        if status == "unchanged":
+            continue
+        row = session.scalar(select(LtiScore).where(LtiScore.line_item_id == item.id, LtiScore.user_id == due.user_id)
+                             .execution_options(**fresh)) or LtiScore(line_item_id=item.id, user_id=due.user_id,
+                                                                      tries=0)
+        row.submission_id, row.score_given, row.score_maximum = due.submission_id, due.score, due.maximum
+        row.status, row.error, row.tries, row.sent_at = status, error, (row.tries or 0) + 1, now
+        session.add(row)
+    session.flush()
 
 
 # --- the roster from the LMS (NRPS) --------------------------------------------------------------------------------

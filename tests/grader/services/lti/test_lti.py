@@ -8,6 +8,7 @@ from __future__ import annotations
 import base64
 import json
 import threading
+import time
 from html.parser import HTMLParser
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from urllib.parse import parse_qsl, urlsplit
@@ -110,11 +111,14 @@ class Platform:
         self.refuse_scores = False  # the next score posts answer 503
         self.members: list[dict] = []  # the LMS course's roster (NRPS)
         self.token_scopes: list[str] = []  # the scope of each token request the tool made
+        self.delays: dict[str, float] = {}  # a slow platform: a request whose path ends with a key waits that long
+        self.on_request = lambda path: None  # runs in the server's thread as each request arrives (a test's probe)
         platform = self
 
         class Handler(BaseHTTPRequestHandler):
             def do_GET(self):
                 url = urlsplit(self.path)
+                platform.arrived(url.path)
                 if url.path == "/jwks":
                     body, kind = json.dumps(platform.jwks or platform.conf().get_jwks()), "application/json"
                 elif url.path == "/memberships":
@@ -151,6 +155,7 @@ class Platform:
             def do_POST(self):
                 raw = self.rfile.read(int(self.headers.get("Content-Length", 0))).decode()
                 path = urlsplit(self.path).path
+                platform.arrived(path)
                 if path == "/token":
                     platform.token_scopes.append(dict(parse_qsl(raw)).get("scope", ""))
                     conf = platform.conf()
@@ -184,6 +189,11 @@ class Platform:
                         .set_tool_key_set_url(f"{self.tool}/lti/jwks")
                         .set_platform_public_key(self.public_pem).set_platform_private_key(self.private_pem))
         return _Conf(registration=registration)
+
+    def arrived(self, path: str) -> None:
+        """A request for `path` came: the test's probe sees it, then the answer waits as `delays` says."""
+        self.on_request(path)
+        time.sleep(next((s for end, s in self.delays.items() if path.endswith(end)), 0.0))
 
     def login_url(self, user: str, link: str) -> str:
         """The link a person clicks in the LMS: the tool's login initiation URL."""
