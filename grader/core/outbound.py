@@ -9,8 +9,12 @@ is refused at connection time); loopback, private, shared (100.64/10), link-loca
 unspecified ranges are refused, IPv4 and IPv6 alike, including IPv4 inside IPv6 (mapped, 6to4, Teredo). An operator's
 allow-list (settings.outbound_allowed_hosts: host names, addresses or networks, each optionally with :port) lets a
 platform inside a private network through. Redirects are not followed (a 3xx is a refusal naming its status),
-proxies and .netrc of the environment are not used, the whole exchange has settings.outbound_timeout_s and the
-body is read as a stream and stopped past settings.outbound_max_bytes.
+proxies and .netrc of the environment are not used, the body is read as a stream and stopped past
+settings.outbound_max_bytes, and the whole exchange (connection, TLS, request, headers, body) ends within
+settings.outbound_timeout_s however slowly the other side sends: urllib3's timeouts bound each socket operation only
+(its Timeout(total=) too: what is left is again a bound for each read), so a peer sending a byte a second never trips
+them; a watchdog timer per fetch shuts down the fetch's sockets when the time is up (`_Deadline`). Name resolution is
+left to the system resolver's own timeouts.
 
 A failure is an `OutboundError` whose message is ours: the URL and the rule or the HTTP status, never the remote
 body, so a caller may store or show it.
@@ -25,6 +29,7 @@ from __future__ import annotations
 import ipaddress
 import logging
 import socket
+import threading
 import time
 from functools import lru_cache
 from urllib.parse import urlsplit
@@ -177,6 +182,68 @@ def url_refusal(url: str, *, resolve: bool = True) -> str | None:
     return None
 
 
+# --- the deadline: one for the whole exchange, however slowly the peer sends ----------------------------------------
+
+class _Deadline:
+    """The time one fetch has (`seconds` from now), enforced by a watchdog: every socket the fetch connects or reuses
+    is watched (a duplicate of its descriptor, so the watchdog never touches a descriptor number closed and reused
+    meanwhile), and when the time is up they are shut down, which ends a blocked TLS handshake, send or read at once
+    (it sees the connection end); a connect gets what is left as its timeout. Used as a context manager around the
+    fetch; `passed` says whether the time ran out, so that a cut-off exchange is never taken for a complete one."""
+
+    _current = threading.local()
+
+    def __init__(self, seconds: float):
+        self.ends = time.monotonic() + seconds
+        self.passed = False
+        self._lock = threading.Lock()
+        self._watched: list[socket.socket] = []
+        self._timer = threading.Timer(seconds, self._expire)
+        self._timer.daemon = True
+
+    @classmethod
+    def current(cls) -> _Deadline | None:
+        """The deadline of the fetch running in this thread, if any."""
+        return getattr(cls._current, "deadline", None)
+
+    def left(self) -> float:
+        return max(0.0, self.ends - time.monotonic())
+
+    def watch(self, sock: socket.socket) -> None:
+        copy = socket.socket(fileno=socket.dup(sock.fileno()))
+        with self._lock:
+            self._watched.append(copy)
+            if self.passed:
+                self._shut(copy)
+
+    @staticmethod
+    def _shut(sock: socket.socket) -> None:
+        try:
+            sock.shutdown(socket.SHUT_RDWR)
+        except OSError:  # not connected (yet, or any more)
+            pass
+
+    def _expire(self) -> None:
+        with self._lock:
+            self.passed = True
+            for sock in self._watched:
+                self._shut(sock)
+
+    def __enter__(self) -> _Deadline:
+        self._outer = self.current()
+        self._current.deadline = self
+        self._timer.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._timer.cancel()
+        self._current.deadline = self._outer
+        with self._lock:
+            for sock in self._watched:
+                sock.close()  # the duplicate only: a kept-alive connection stays open for the next fetch
+            self._watched.clear()
+
+
 # --- the connection: resolve once, check, connect to the checked address -------------------------------------------
 
 def _connect(conn: HTTPConnection):
@@ -186,17 +253,25 @@ def _connect(conn: HTTPConnection):
     except socket.gaierror as exc:
         raise NameResolutionError(conn.host, conn, exc) from exc
     last: OSError | None = None
+    deadline = _Deadline.current()
     for family, kind, proto, _, address in infos:
         refusal = address_refusal(conn.host, ipaddress.ip_address(address[0].split("%")[0]), port)
         if refusal:
             raise _AddressRefused(refusal)
     for family, kind, proto, _, address in infos:
+        left = deadline.left() if deadline is not None else None  # each address tried gets what is left, no more
+        if left is not None and left <= 0:
+            raise ConnectTimeoutError(conn, f"Connection to {conn.host} timed out")
         sock = socket.socket(family, kind, proto)
         try:
             for option in conn.socket_options or ():
                 sock.setsockopt(*option)
             if conn.timeout is not _DEFAULT_TIMEOUT:
                 sock.settimeout(conn.timeout)
+            if left is not None:
+                sock.settimeout(left if sock.gettimeout() is None else min(left, sock.gettimeout()))
+                deadline.watch(sock)
+                conn._watched_by = deadline
             if conn.source_address:
                 sock.bind(conn.source_address)
             sock.connect(address)  # the very address checked above: no second lookup
@@ -210,12 +285,26 @@ def _connect(conn: HTTPConnection):
     raise NewConnectionError(conn, f"Failed to establish a new connection: {last}")
 
 
-class _GuardedHTTPConnection(HTTPConnection):
+class _Watched:
+    """A connection whose socket the running fetch's deadline watches, a kept-alive one reused by a later fetch of
+    the session too."""
+
+    _watched_by: _Deadline | None = None
+
+    def request(self, *args, **kwargs):
+        deadline = _Deadline.current()
+        if deadline is not None and self.sock is not None and self._watched_by is not deadline:
+            deadline.watch(self.sock)
+            self._watched_by = deadline
+        return super().request(*args, **kwargs)
+
+
+class _GuardedHTTPConnection(_Watched, HTTPConnection):
     def _new_conn(self):
         return _connect(self)
 
 
-class _GuardedHTTPSConnection(HTTPSConnection):
+class _GuardedHTTPSConnection(_Watched, HTTPSConnection):
     def _new_conn(self):  # TLS is wrapped around this socket by urllib3 with the URL's host name (SNI, certificate)
         return _connect(self)
 
@@ -254,35 +343,43 @@ class _Session(requests.Session):
             raise OutboundError(f"{url}: {refusal}")
         limit, cap = settings.outbound_timeout_s, settings.outbound_max_bytes
         kwargs.update(allow_redirects=False, stream=True, timeout=(limit, limit), proxies={})
-        started = time.monotonic()
-        try:
-            response = super().request(method, url, **kwargs)
-        except _AddressRefused as exc:
-            raise OutboundError(f"{url}: refused: {exc}") from None
-        except requests.Timeout:
-            raise OutboundError(f"{url}: no answer within {limit:g} s") from None
-        except requests.RequestException:
-            raise OutboundError(f"{url}: could not connect") from None
-        with response:
-            if response.is_redirect or 300 <= response.status_code < 400:
-                raise OutboundError(f"{url} answered HTTP {response.status_code} (a redirect): redirects are not "
-                                    "followed")
-            declared = response.headers.get("Content-Length", "")
-            if declared.isdigit() and int(declared) > cap:
-                raise OutboundError(f"{url} answered HTTP {response.status_code} with more than {cap} bytes")
-            body, size = [], 0
+        no_answer = OutboundError(f"{url}: no answer within {limit:g} s")
+        with _Deadline(limit) as deadline:
             try:
-                for chunk in response.iter_content(65536):
-                    size += len(chunk)
-                    if size > cap:
-                        raise OutboundError(f"{url} answered HTTP {response.status_code} with more than {cap} bytes")
-                    if time.monotonic() - started > limit:
-                        raise OutboundError(f"{url}: the answer took longer than {limit:g} s")
-                    body.append(chunk)
-            except requests.RequestException as exc:
-                if isinstance(exc, OutboundError):
-                    raise
-                raise OutboundError(f"{url}: the answer broke off (HTTP {response.status_code})") from None
+                response = super().request(method, url, **kwargs)
+            except _AddressRefused as exc:
+                raise OutboundError(f"{url}: refused: {exc}") from None
+            except requests.Timeout:
+                raise no_answer from None
+            except requests.RequestException:
+                raise (no_answer if deadline.passed else OutboundError(f"{url}: could not connect")) from None
+            with response:
+                if deadline.passed:  # headers cut off by the watchdog end early and may look complete
+                    raise no_answer
+                if response.is_redirect or 300 <= response.status_code < 400:
+                    raise OutboundError(f"{url} answered HTTP {response.status_code} (a redirect): redirects are not "
+                                        "followed")
+                declared = response.headers.get("Content-Length", "")
+                if declared.isdigit() and int(declared) > cap:
+                    raise OutboundError(f"{url} answered HTTP {response.status_code} with more than {cap} bytes")
+                took_longer = OutboundError(f"{url}: the answer took longer than {limit:g} s")
+                body, size = [], 0
+                try:
+                    for chunk in response.iter_content(65536):
+                        size += len(chunk)
+                        if size > cap:
+                            raise OutboundError(f"{url} answered HTTP {response.status_code} with more than {cap} "
+                                                "bytes")
+                        if deadline.passed:
+                            raise took_longer
+                        body.append(chunk)
+                except requests.RequestException as exc:
+                    if isinstance(exc, OutboundError):
+                        raise
+                    raise (took_longer if deadline.passed else
+                           OutboundError(f"{url}: the answer broke off (HTTP {response.status_code})")) from None
+                if deadline.passed:  # a body that ends with the connection, cut by the watchdog, looks complete
+                    raise took_longer
         response._content = b"".join(body)
         return response
 

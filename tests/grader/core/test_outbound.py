@@ -1,13 +1,17 @@
 """The server fetches nothing internal (grader.core.outbound): the review's high finding replayed (an instructor's
 registration naming an internal server, an anonymous login and an unsigned launch), refused when the registration is
 saved and, with that check bypassed in the database, when the launch fetches; and the guard itself against real
-servers on loopback: addresses checked where the socket connects (DNS rebinding), the operator's allow-list by port,
-no redirects, a size cap, a timeout, https only."""
+servers on loopback: addresses checked where the socket connects (DNS rebinding, a name with a public and a private
+address), the operator's allow-list by port and exact name, no redirects, a size cap (declared or counted over small
+chunks), one deadline for the whole exchange however slowly a peer sends, https only, the URL's rules again at fetch
+time."""
 
 from __future__ import annotations
 
 import base64
+import html
 import json
+import re
 import socket
 import threading
 import time
@@ -62,6 +66,63 @@ class Internal:
         self.server.server_close()
 
 
+class Peer:
+    """A peer on loopback that sends its answer slowly (a thread with a listening socket): to each connection, after
+    the request, `pieces[0]` at once, then each other piece `pace` seconds after the last; at `stop_after` seconds
+    whatever remains at once, then it closes (the test's own bound: a client that waits for it all is done then)."""
+
+    def __init__(self, pieces: list[bytes], *, pace: float, stop_after: float = 7.0):
+        self.listener = socket.create_server(("127.0.0.1", 0))
+        self.listener.settimeout(0.2)
+        self.port = self.listener.getsockname()[1]
+        self.url = f"http://127.0.0.1:{self.port}/keys"
+        self.closed = False
+        threading.Thread(target=self._serve, args=(pieces, pace, stop_after), daemon=True).start()
+
+    def _serve(self, pieces: list[bytes], pace: float, stop_after: float):
+        while not self.closed:
+            try:
+                conn, _ = self.listener.accept()
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            threading.Thread(target=self._send, args=(conn, pieces, pace, stop_after), daemon=True).start()
+
+    @staticmethod
+    def _send(conn: socket.socket, pieces: list[bytes], pace: float, stop_after: float):
+        end = time.monotonic() + stop_after
+        with conn:
+            try:
+                conn.recv(65536)  # the request
+                for i, piece in enumerate(pieces):
+                    if i and pace:
+                        if time.monotonic() + pace > end:
+                            conn.sendall(b"".join(pieces[i:]))
+                            return
+                        time.sleep(pace)
+                    conn.sendall(piece)
+            except OSError:  # the client went away
+                pass
+
+    def close(self):
+        self.closed = True
+        self.listener.close()
+
+
+def _key_set_answer(body: bytes) -> bytes:
+    return (b"HTTP/1.1 200 OK\r\nContent-Type: application/json\r\nContent-Length: " + str(len(body)).encode()
+            + b"\r\n\r\n" + body)
+
+
+@pytest.fixture
+def peers():
+    made: list[Peer] = []
+    yield lambda pieces, **kw: made.append(Peer(pieces, **kw)) or made[-1]
+    for peer in made:
+        peer.close()
+
+
 @pytest.fixture
 def internal():
     server = Internal()
@@ -82,6 +143,13 @@ def http_allowed(monkeypatch):
 def _registration_body(url: str) -> dict:
     return {"issuer": "https://lms.example.edu", "client_id": "ssrf-1", "deployment_ids": ["1"],
             "auth_login_url": "https://lms.example.edu/auth", "auth_token_url": url, "key_set_url": url}
+
+
+def _register(api, client_id: str, key_set_url: str):
+    """An instructor registers a platform whose key set is at `key_set_url` (the token URL is a public one)."""
+    return api.client.post("/v1/courses/l03/lti/registrations", headers=api.as_("prof"),
+                           json=_registration_body("https://lms.example.edu/token")
+                           | {"client_id": client_id, "key_set_url": key_set_url})
 
 
 def test_an_instructor_cannot_register_an_internal_key_set_url(api, internal, http_allowed):
@@ -114,6 +182,30 @@ def _unsigned(claims: dict) -> str:
     return f"{part({'alg': 'RS256', 'kid': 'k1', 'typ': 'JWT'})}.{part(claims)}.AAAA"
 
 
+def _launch(api, client_id: str):
+    """An anonymous login and an unsigned launch for the registration of `client_id`: the launch fetches its key set
+    (the launch's answer)."""
+    login = api.client.get("/lti/login", params={"iss": "https://lms.example.edu", "client_id": client_id,
+                                                 "login_hint": "x", "target_link_uri": "http://testserver/lti/launch"},
+                           follow_redirects=False)
+    assert login.status_code == 302, login.text
+    query = parse_qs(urlsplit(login.headers["location"]).query)
+    now = int(time.time())
+    token = _unsigned({"iss": "https://lms.example.edu", "aud": client_id, "sub": "u", "nonce": query["nonce"][0],
+                       "iat": now, "exp": now + 300,
+                       "https://purl.imsglobal.org/spec/lti/claim/deployment_id": "1"})
+    return api.client.post("/lti/launch", data={"id_token": token, "state": query["state"][0]},
+                           follow_redirects=False)
+
+
+def _key_set_refusal(answer) -> str:
+    """The rule the launch's error page gives for key_set_url."""
+    assert answer.status_code == 400, answer.text
+    found = re.search(r"<li><code>key_set_url</code>: (.*?)</li>", answer.text)
+    assert found, answer.text
+    return html.unescape(found.group(1))
+
+
 def test_a_launch_never_fetches_an_internal_key_set_url_stored_past_the_check(api, internal, http_allowed):
     """The finding as the review ran it, with the registration's check bypassed (a row written to the database
     directly): an anonymous login and an unsigned launch make the tool fetch the key set, which must be refused at
@@ -129,17 +221,7 @@ def test_a_launch_never_fetches_an_internal_key_set_url_stored_past_the_check(ap
         session.flush()
         session.add(LtiDeployment(registration_id=row.id, deployment_id="1"))
         session.commit()
-    login = api.client.get("/lti/login", params={"iss": "https://lms.example.edu", "client_id": "ssrf-1",
-                                                 "login_hint": "x", "target_link_uri": "http://testserver/lti/launch"},
-                           follow_redirects=False)
-    assert login.status_code == 302, login.text
-    query = parse_qs(urlsplit(login.headers["location"]).query)
-    now = int(time.time())
-    token = _unsigned({"iss": "https://lms.example.edu", "aud": "ssrf-1", "sub": "u", "nonce": query["nonce"][0],
-                       "iat": now, "exp": now + 300,
-                       "https://purl.imsglobal.org/spec/lti/claim/deployment_id": "1"})
-    answer = api.client.post("/lti/launch", data={"id_token": token, "state": query["state"][0]},
-                             follow_redirects=False)
+    answer = _launch(api, "ssrf-1")
     assert answer.status_code == 400, answer.text
     assert SECRET not in answer.text
     assert "<code>key_set_url</code>" in answer.text and "127.0.0.1 is a loopback address" in answer.text
@@ -347,3 +429,110 @@ def test_https_is_verified_against_the_urls_host_name_on_the_checked_socket(tmp_
         assert "loopback" in _refusal(f"https://127.0.0.1:{server.port}/keys")  # not allowed by address
     finally:
         server.close()
+
+
+# --- one deadline for the whole exchange (issue 44, finding 1) ---------------------------------------------------------
+
+@pytest.fixture
+def two_seconds(http_allowed):
+    """Plain http to loopback on any port (the peers' ports are not known before), and 2 s for a whole fetch."""
+    http_allowed.outbound_allowed_hosts = ["127.0.0.1"]
+    http_allowed.outbound_timeout_s = 2.0
+    return http_allowed
+
+
+def test_headers_sent_a_line_a_second_are_cut_at_the_deadline(two_seconds, peers):
+    """Each read gets a line within the per-read timeout; the whole fetch still ends at its deadline."""
+    lines = [b"HTTP/1.1 200 OK\r\n", *(f"X-Drip-{i}: {i}\r\n".encode() for i in range(20))]
+    peer = peers([*lines, _key_set_answer(b'{"keys": []}').partition(b"\r\n")[2]], pace=1.0)
+    started = time.monotonic()
+    message = _refusal(peer.url)
+    assert time.monotonic() - started < 3.0
+    assert message == f"{peer.url}: no answer within 2 s"
+
+
+def test_a_launch_is_not_held_by_a_key_set_sent_a_byte_a_second(api, two_seconds, peers):
+    """The finding as it meets a user: an instructor registers a platform whose key set drips (a Content-Length body,
+    a byte a second); an anonymous launch fetches it and is answered at the deadline, naming it."""
+    answer = _key_set_answer(b'{"keys": []}' + b" " * 30)
+    head, _, body = answer.partition(b"\r\n\r\n")
+    peer = peers([head + b"\r\n\r\n", *(body[i:i + 1] for i in range(len(body)))], pace=1.0)
+    assert _register(api, "drip-1", peer.url).status_code == 201
+    started = time.monotonic()
+    launched = _launch(api, "drip-1")
+    assert time.monotonic() - started < 3.0
+    assert _key_set_refusal(launched) == f"{peer.url}: the answer took longer than 2 s"
+
+
+# --- the guard's single lines that no test held (issue 50: OUT1, OUT2, OUT3, OUT5) ------------------------------------
+
+@pytest.fixture
+def dns(monkeypatch):
+    """Names this test resolves itself: host -> its addresses, in order (other names as the system resolves them)."""
+    real = socket.getaddrinfo
+    names: dict[str, list[str]] = {}
+
+    def lookup(host, port, *args, **kwargs):
+        if host not in names:
+            return real(host, port, *args, **kwargs)
+        return [(socket.AF_INET6, socket.SOCK_STREAM, 6, "", (a, port, 0, 0)) if ":" in a else
+                (socket.AF_INET, socket.SOCK_STREAM, 6, "", (a, port)) for a in names[host]]
+
+    monkeypatch.setattr(socket, "getaddrinfo", lookup)
+    return names
+
+
+def test_a_name_with_a_public_and_a_private_address_is_refused_where_the_socket_connects(api, internal, http_allowed,
+                                                                                          dns):
+    """Registered while its name had a public address only; by the launch it has a private one too, after the public
+    one: every address is checked before any is connected to."""
+    http_allowed.outbound_timeout_s = 2.0
+    dns["two.example.edu"] = ["2606:4700:4700::1111"]
+    url = f"http://two.example.edu:{internal.port}/internal/secret"
+    assert _register(api, "two-1", url).status_code == 201
+    dns["two.example.edu"] = ["2606:4700:4700::1111", "127.0.0.1"]
+    assert _key_set_refusal(_launch(api, "two-1")) == (
+        f"{url}: refused: two.example.edu resolves to 127.0.0.1, which is a loopback address: only public addresses "
+        "are fetched (or those the operator allows)")
+    assert internal.seen == []
+
+
+def test_the_allow_list_names_a_host_exactly_not_every_name_ending_in_it(api, dns, monkeypatch):
+    from grader.core.settings import settings
+
+    dns["lms.campus.internal"] = dns["evil-lms.campus.internal"] = ["10.0.0.7"]
+    monkeypatch.setattr(settings, "outbound_allowed_hosts", ["lms.campus.internal"])
+    assert _register(api, "campus-1", "https://lms.campus.internal/jwks").status_code == 201
+    refused = _register(api, "campus-2", "https://evil-lms.campus.internal/jwks")
+    assert refused.status_code == 422
+    assert refused.json()["errors"] == [{"field": "key_set_url", "rule": (
+        "evil-lms.campus.internal resolves to 10.0.0.7, which is a private address: only public addresses are "
+        "fetched (or those the operator allows)")}]
+
+
+def test_an_answer_past_the_size_cap_in_small_chunks_is_stopped(api, two_seconds, peers):
+    """No Content-Length to refuse at once: a chunked key set of 3,000 bytes in 500-byte chunks, counted as it comes."""
+    two_seconds.outbound_max_bytes = 1_000
+    body = b'{"keys": []}' + b" " * 2_988
+    chunks = [b"%x\r\n%s\r\n" % (500, body[i:i + 500]) for i in range(0, len(body), 500)]
+    peer = peers([b"HTTP/1.1 200 OK\r\nContent-Type: application/json\r\nTransfer-Encoding: chunked\r\n\r\n",
+                  *chunks, b"0\r\n\r\n"], pace=0)
+    assert _register(api, "big-1", peer.url).status_code == 201
+    assert _key_set_refusal(_launch(api, "big-1")) == f"{peer.url} answered HTTP 200 with more than 1000 bytes"
+
+
+def test_the_urls_own_rules_apply_again_when_it_is_fetched(api, internal, http_allowed):
+    """Registered while the operator allowed plain http; allowed no more, the launch fetches nothing. A user name in
+    the URL, and a scheme that is no http(s), are refused at fetch time too."""
+    http_allowed.outbound_allowed_hosts = [f"127.0.0.1:{internal.port}"]
+    assert _register(api, "http-1", internal.url).status_code == 201
+    http_allowed.outbound_allow_http = False
+    assert _key_set_refusal(_launch(api, "http-1")) == (
+        f"{internal.url}: must be an https URL (plain http is refused unless the operator allows it: "
+        "OUTBOUND_ALLOW_HTTP)")
+    http_allowed.outbound_allow_http = True
+    with_user = f"http://grader:pw@127.0.0.1:{internal.port}/internal/secret"
+    assert _refusal(with_user) == f"{with_user}: must not carry a user name or password"
+    assert _refusal(f"ftp://127.0.0.1:{internal.port}/x") == f"ftp://127.0.0.1:{internal.port}/x: must be an " \
+                                                             "absolute https URL"
+    assert internal.seen == []
