@@ -590,6 +590,47 @@ def test_a_links_own_line_item_gets_its_scores(api, platform):
     assert platform.token_scopes == [SCORE_SCOPE]
 
 
+def test_a_score_sent_while_a_launch_moves_the_column_goes_again_to_the_new_one(api, platform):
+    """A send holds nothing while the platform answers, and stores what it sent only after reading the line item
+    again: a launch that names the link's own column while a score is on its way to the old one is not kept waiting,
+    and leaves that score unrecorded on the new column, due again, so the next send posts it there."""
+    from fastapi.testclient import TestClient
+
+    from grader.core.models import LtiOutbox, LtiScore
+    from grader.main import app
+
+    platform.tool_jwks = api.client.get("/lti/jwks").json()
+    aid = create(api, title="Lab 3 checkpoints").json()["id"]
+    platform.links["link-1"] = {"assignment_id": str(aid)}
+    assert post_launch(api, launch_form(api, platform, "lms-user-17")).status_code == 200
+    graded_attempt(aid, "lms-user-17", 1, 6.0)
+    assert [s["status"] for s in send(api, aid)] == ["sent"]  # to the column the tool made: lineitems/0
+    graded_attempt(aid, "lms-user-17", 2, 8.0)
+    platform.line_items.append({"id": f"{platform.url}/lineitems/1", "label": "the link's own column",
+                                "scoreMaximum": 10, "scores": {}})
+    relaunched = []
+
+    def relaunch(path: str) -> None:  # while attempt 2's score is posted to lineitems/0, before the answer
+        if path == "/lineitems/0/scores" and not relaunched:
+            platform.override = {AGS_CLAIM: {"scope": [LINEITEM_SCOPE, SCORE_SCOPE],
+                                             "lineitems": f"{platform.url}/lineitems",
+                                             "lineitem": f"{platform.url}/lineitems/1"}}
+            browser = TestClient(app)
+            relaunched.append(post_launch(api, launch_form(api, platform, "lms-user-17", client=browser),
+                                          client=browser))
+
+    platform.on_request = relaunch
+    assert [(s["status"], s["score"]) for s in send(api, aid)] == [("sent", 8.0)]
+    platform.on_request = lambda path: None
+    assert relaunched[0].status_code == 200, relaunched[0].text[-500:]
+    assert platform.line_items[0]["scores"]["lms-user-17"]["scoreGiven"] == 8.0  # it reached the old column
+    with _session() as session:
+        assert session.scalars(select(LtiScore)).all() == []  # nothing claims the new column has it
+        assert session.scalar(select(LtiOutbox).where(LtiOutbox.assignment_id == aid)).due_at is not None
+    assert [(s["status"], s["score"]) for s in send(api, aid)] == [("sent", 8.0)]
+    assert platform.line_items[1]["scores"]["lms-user-17"]["scoreGiven"] == 8.0
+
+
 def test_a_failed_send_is_listed_and_tried_again(api, platform):
     platform.tool_jwks = api.client.get("/lti/jwks").json()
     aid = create(api).json()["id"]
