@@ -113,6 +113,9 @@ class Settings(BaseSettings):
     outbound_allowed_hosts: Annotated[list[str], NoDecode] = Field(default_factory=list)
     outbound_timeout_s: float = Field(10.0, gt=0, le=120)
     outbound_max_bytes: int = Field(2_000_000, ge=1_000)
+    # Members one course's LMS roster sync reads at most (every entry of every page, all roles): past it the sync
+    # stops with a 409 naming this cap, keeping the pages before (grader.services.lti.roster).
+    lti_roster_max_members: int = Field(10_000, ge=1, le=1_000_000)
     # Per client address, anonymous LTI logins (/lti/login): each stores a one-time state until it expires.
     rate_limit_lti_logins: str = "30/minute"
     # API processes the container starts (uvicorn --workers; docker-compose.yml sets 2): each holds its own

@@ -22,7 +22,6 @@ from pylti1p3.deployment import Deployment
 from pylti1p3.exception import LtiException, LtiServiceException
 from pylti1p3.grade import Grade as LibraryGrade
 from pylti1p3.lineitem import LineItem
-from pylti1p3.names_roles import NamesRolesProvisioningService
 from pylti1p3.registration import Registration
 from pylti1p3.service_connector import ServiceConnector
 from pylti1p3.session import SessionService
@@ -783,57 +782,3 @@ def _record_scores(session: Session, book: _Gradebook, assignment_id: int, url: 
         session.add(row)
     session.flush()
 
-
-# --- the roster from the LMS (NRPS) --------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class RosterSync:
-    added: list[str]
-    updated: list[str]
-    dropped: list[str]  # LMS students no longer active there: reported, never deleted (their submissions stay)
-    unchanged: int
-
-
-def sync_roster(*, session: Session, course: Course) -> RosterSync:
-    """The course's students as its LMS courses list them (every registration's context with a roster service):
-    new ones are created, known ones updated (name, email), found by their LMS id so nobody is duplicated. Students
-    an LMS lists as inactive or no longer lists are reported as dropped and kept. Staff are left alone. A Conflict
-    when no LMS course offered its roster, or one could not be read (nothing changed then); the caller commits."""
-    contexts = list(session.scalars(select(LtiContext).join(LtiRegistration)
-                                    .where(LtiRegistration.course_id == course.id,
-                                           LtiContext.memberships_url.is_not(None)).order_by(LtiContext.id)))
-    if not contexts:
-        raise Conflict("no LMS course of this course offered its roster yet: launch the tool from the LMS first")
-    added, updated, dropped, unchanged, listed = [], [], [], 0, set()
-    for context in contexts:
-        try:
-            members = NamesRolesProvisioningService(
-                _connector(session, context.registration),
-                {"context_memberships_url": context.memberships_url}).get_members()
-        except (LtiException, requests.RequestException, AttributeError, KeyError, TypeError, ValueError) as exc:
-            raise Conflict(f"the LMS roster of {context.context_id} could not be read: "
-                           f"{failure_text(exc)}") from None
-        for member in members:
-            if not isinstance(member, dict):
-                continue
-            sub, roles = member.get("user_id"), member.get("roles") or []
-            roles = roles if isinstance(roles, list) else []
-            if not isinstance(sub, str) or not 0 < len(sub) <= 255 or not any(r in LEARNER_ROLES for r in roles):
-                continue
-            if member.get("status", "Active") != "Active":
-                continue  # inactive there: reported with the dropped below
-            listed.add((context.registration_id, sub))
-            user, change = _person(session, context.registration, sub, Role.STUDENT, member.get("name"),
-                                   member.get("email"))
-            session.flush()
-            if change == "added":
-                added.append(user.name)
-            elif change == "updated":
-                updated.append(user.name)
-            else:
-                unchanged += 1
-    registrations = {context.registration_id for context in contexts}
-    for identity in session.scalars(select(LtiIdentity).where(LtiIdentity.registration_id.in_(registrations))):
-        if access.is_student(identity.user) and (identity.registration_id, identity.sub) not in listed:
-            dropped.append(identity.user.name)
-    return RosterSync(added=added, updated=updated, dropped=sorted(dropped), unchanged=unchanged)

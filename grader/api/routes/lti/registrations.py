@@ -12,6 +12,7 @@ from grader.api.responses import errors
 from grader.core.models import LtiRegistration
 from grader.services.setup import assignments
 from grader.services.lti import launch as lti
+from grader.services.lti import roster
 
 router = APIRouter(prefix="/courses/{course}/lti", tags=["lti"], responses=errors(401, 403, 404, 422))
 
@@ -55,7 +56,8 @@ def send_scores(course: InstructorCourse, assignment_id: int, request: Request, 
 @router.post("/roster-sync", response_model=RosterSyncPublic, responses=errors(409))
 def sync_roster(course: InstructorCourse, session: SessionDep):
     """Sync the course's students from its LMS courses' rosters (instructors): added, updated and dropped students
-    are listed; nobody is duplicated and nobody deleted. 409 when no LMS course offered its roster."""
-    result = lti.sync_roster(session=session, course=course)
+    are listed; nobody is duplicated and nobody deleted. 409 when no LMS course offered its roster, a page could not
+    be read or the roster passed LTI_ROSTER_MAX_MEMBERS (the pages read before are kept, as the 409 says)."""
+    result = roster.sync_roster(session=session, course=course)
     session.commit()
     return RosterSyncPublic(**vars(result))
