@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from grader.core import warmth
-from grader.core.lifecycle import NEW_PRIORITY, REQUEUED_PRIORITY, RERUN_PRIORITY
+from grader.core.lifecycle import NEW_PRIORITY, POOL_PRIORITY, REQUEUED_PRIORITY, RERUN_PRIORITY
 
 
 def send_case_run(case_run_id: int, delivery: int, backend: str, *, priority: int = NEW_PRIORITY) -> None:
@@ -24,10 +24,13 @@ def send_grade(submission_id: int) -> None:
 
 
 def resend(resend) -> None:
-    """Enqueue what the reconciler marked (grader.reconcile.Resend)."""
+    """Enqueue what the reconciler marked (grader.reconcile.Resend): a variant pool's runs behind every student's
+    again (POOL_PRIORITY), whether they waited past the queue lease behind them or their worker died."""
     for case_run_id, delivery, backend in resend.case_runs:
         rerun = case_run_id in resend.were_running
-        send_case_run(case_run_id, delivery, backend, priority=RERUN_PRIORITY if rerun else REQUEUED_PRIORITY)
+        priority = (POOL_PRIORITY if case_run_id in resend.pool_runs
+                    else RERUN_PRIORITY if rerun else REQUEUED_PRIORITY)
+        send_case_run(case_run_id, delivery, backend, priority=priority)
     for submission_id in resend.gradings:
         send_grade(submission_id)
 

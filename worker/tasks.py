@@ -16,6 +16,7 @@ from sqlalchemy.orm import Session
 from grader.core import lifecycle
 from grader.core.db import make_engine, new_session
 from grader.core.settings import settings
+from grader.core.variants import pool_runs
 from worker import grading, slot, warm_gate
 from worker.audit import audit_finished_run
 from worker.case_run import process_case_run
@@ -108,9 +109,11 @@ def _rerun_what_died_here(**_) -> None:
                 lifecycle.requeue(session, run, f"its process {run.worker_pid} on {lifecycle.HOST} is gone "
                                                 "(seen by a worker starting there)")
                 todo.append((run.id, run.delivery, run.backend))
+            pool = pool_runs(session, [case_run_id for case_run_id, _, _ in todo])  # behind students' runs still
             session.commit()
         for case_run_id, delivery, backend in todo:
-            run_case_run.apply_async(args=[case_run_id, delivery], queue=backend, priority=lifecycle.RERUN_PRIORITY)
+            priority = lifecycle.POOL_PRIORITY if case_run_id in pool else lifecycle.RERUN_PRIORITY
+            run_case_run.apply_async(args=[case_run_id, delivery], queue=backend, priority=priority)
     except INFRA_ERRORS:  # queued in the database or not touched at all: the reconciler re-sends it
         logging.getLogger(__name__).exception("could not re-send the runs of dead processes on %s", lifecycle.HOST)
     finally:

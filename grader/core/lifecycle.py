@@ -38,6 +38,9 @@ EVIDENCE_FILES = ("arrays.npz", "provenance.json", "metrics.json", "spec.json", 
 # lost (a broker restart), then new runs, and last the lab check of a grade already stored (it goes on the cpu
 # queue too, so a worker evaluates it only when no case waits: at a deadline every grade comes first).
 RERUN_PRIORITY, REQUEUED_PRIORITY, NEW_PRIORITY, COMPLETE_PRIORITY = 0, 3, 6, 9
+# A variant pool's measuring runs (grader.services.setup.variants), sent and re-sent: the lowest, behind every student's
+# runs (a student's next run waits at most for the pool runs slots already hold), in order sent with the lab checks.
+POOL_PRIORITY = 9
 # A student's new runs take 4, 5, 6, 7, then 8 for the rest, by how many of that student's runs wait ahead of them
 # (worker.celery_app gives Redis one list per priority 0-9): a student with one run waiting is served before the
 # fourth run of a student who queued nine, so students' runs interleave instead of first come, first served.

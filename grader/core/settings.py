@@ -102,6 +102,13 @@ class Settings(BaseSettings):
     rate_limit_link_guesses: str = "20/10 minutes"
     # Case runs one student may have waiting or running at once (a whole sheet queues at most 9).
     student_waiting_runs_max: int = Field(27, ge=1)
+    # Variant pools (grader.services.setup.variants): the most variants one pool may ask for (K: each queues a measuring
+    # submission of 9 case runs; the variant space yields 64 at most), and how many pools may be measured at once per
+    # instructor and per course (a pool is measuring until every variant is kept or dropped). Pool runs wait at the
+    # lowest priority (grader.core.lifecycle.POOL_PRIORITY), behind every student's.
+    variant_pool_k_max: int = Field(64, ge=1, le=64)
+    variant_pools_measuring_per_instructor: int = Field(1, ge=1)
+    variant_pools_measuring_per_course: int = Field(2, ge=1)
     # The service's public URL (https://grader.example.edu): the report link in the comment of each score the
     # reconciler's pass sends to an LMS gradebook (grader.services.lti.outbox). Empty: the comment names the attempt.
     public_url: str = ""

@@ -15,8 +15,8 @@ from sqlalchemy.orm import Session
 import rubric
 from rubric.copying import copy_evidence
 
-from grader.core.lifecycle import stored_result
-from grader.core.models import CopyFlag, Event, Grade, PoolVariant, Submission, utcnow
+from grader.core.lifecycle import NEW_PRIORITY, POOL_PRIORITY, stored_result
+from grader.core.models import CaseRun, CopyFlag, Event, Grade, PoolVariant, Submission, utcnow
 from grader.core.states import PoolState, VariantState
 
 log = logging.getLogger(__name__)
@@ -43,6 +43,21 @@ def measuring_submissions():
     """SQL: the ids of the submissions that measure a pool's variants (an instructor's, graded only to check the
     variant): not a student's work, left out of the grade exports."""
     return select(PoolVariant.submission_id).where(PoolVariant.submission_id.is_not(None))
+
+
+def pool_runs(session: Session, case_run_ids) -> set[int]:
+    """Of `case_run_ids`, the runs of a pool's measuring submissions: sent and re-sent at lifecycle.POOL_PRIORITY,
+    behind every student's runs, whoever sends them (the pool's measuring, the reconciler, a person re-sending one)."""
+    ids = list(case_run_ids)
+    if not ids:
+        return set()
+    return set(session.scalars(select(CaseRun.id).where(CaseRun.id.in_(ids),
+                                                        CaseRun.submission_id.in_(measuring_submissions()))))
+
+
+def send_priority(session: Session, run: CaseRun, otherwise: int = NEW_PRIORITY) -> int:
+    """The priority to send `run` at: POOL_PRIORITY for a pool's measuring run, else `otherwise`."""
+    return POOL_PRIORITY if pool_runs(session, [run.id]) else otherwise
 
 
 def decide(session: Session, row: PoolVariant, *, kept: bool, reason: str | None, check: dict | None = None) -> None:
@@ -139,5 +154,6 @@ def try_flag_copying(session: Session, submission: Submission, grade: Grade, rep
                           detail=f"copy evidence not computed ({type(exc).__name__}); see the service log"))
 
 
-__all__ = ["as_variant", "decide", "drop_reason", "flag_copying", "measured_variant", "measuring_submissions", "runs_on",
-           "record_check", "record_failure", "submission_variant", "try_flag_copying"]
+__all__ = ["as_variant", "decide", "drop_reason", "flag_copying", "measured_variant", "measuring_submissions",
+           "pool_runs", "runs_on", "record_check", "record_failure", "send_priority", "submission_variant",
+           "try_flag_copying"]

@@ -45,7 +45,7 @@ def _page(request: Request, session, user, assignment: Assignment, *, section: s
         "students": logic.students_view(session=session, assignment=assignment),
         "changes": course_changes.of_course(session=session, course=assignment.course, assignment=assignment),
         "pool": _pool(session, user, assignment, request_locale(request)), "k_default": pools.K_DEFAULT,
-        "k_max": pools.K_MAX, "seed_max": SEED_MAX, "opened": assignment.open_at <= utcnow(),
+        "k_max": pools.k_max(), "seed_max": SEED_MAX, "opened": assignment.open_at <= utcnow(),
         "section": section, "errors": errors or [], "refused": refused, "v": posted or {}}, status_code=status_code)
 
 
@@ -148,7 +148,7 @@ def generate_pool(request: Request, assignment: InstructorsAssignment, session: 
     """Draw a pool of K variants from the seed and send every variant's lesson runs to the workers (the API's
     POST /v1/assignments/ID/variants, with the page's sign-in)."""
     posted = {"seed": seed, "k": k}
-    (seed_value, seed_error), (k_value, k_error) = _whole(seed, "seed", 0, SEED_MAX), _whole(k, "k", 1, pools.K_MAX)
+    (seed_value, seed_error), (k_value, k_error) = _whole(seed, "seed", 0, SEED_MAX), _whole(k, "k", 1, pools.k_max())
     if seed_error or k_error:
         return _page(request, session, user, assignment, section="variants", posted=posted,
                      errors=[e for e in (seed_error, k_error) if e], status_code=status.HTTP_422_UNPROCESSABLE_CONTENT)

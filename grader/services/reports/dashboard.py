@@ -28,7 +28,7 @@ from grader.core import lifecycle
 from grader.core.states import CaseRunState, SubmissionState, VariantState
 from grader.core.models import (Assignment, CaseRun, CopyFlag, Course, Grade, PoolVariant, Submission, User,
                                 VariantPool, utcnow)
-from grader.core.variants import measuring_submissions
+from grader.core.variants import measuring_submissions, send_priority
 from grader.core.schemas import CountedGradePublic, UtcDateTime
 from grader.services.identity.access import MAX_ID, require_instructor
 from grader.services.setup.assignments import counted_grades, counted_public
@@ -256,7 +256,7 @@ def resend_case_run(*, session: Session, case_run_id: int, user: User, sender: S
     lifecycle.resend(session, run, by=f"{user.role} {user.name}")
     session.commit()
     try:
-        sender.send_case_run(run.id, run.delivery, run.backend)
+        sender.send_case_run(run.id, run.delivery, run.backend, priority=send_priority(session, run))
     except Exception:  # noqa: BLE001 - stored as queued: the reconciler re-sends it after the queue lease
 
         logging.getLogger(__name__).exception("could not enqueue resent case run %s", run.id)

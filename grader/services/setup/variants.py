@@ -3,6 +3,11 @@ assignment opens, measured by the workers (each variant's lesson runs as the cas
 reused by content key by every student on it), kept or dropped on its lab check (grader.core.variants.record_check);
 staff read the pool and the copy evidence stored at grading. Which variant a student works on:
 grader.services.setup.student_variants.
+
+What a pool costs is counted against the instructor and the course (issue 44): K at most settings.variant_pool_k_max,
+and at most settings.variant_pools_measuring_per_instructor / _per_course pools measuring at once (refused with 429
+and Retry-After past either). Its runs are sent, and re-sent, at lifecycle.POOL_PRIORITY, the lowest: a worker takes
+one only when no student's run waits, so a student's next run waits at most for the pool runs already on a slot.
 """
 
 from __future__ import annotations
@@ -14,7 +19,7 @@ from pathlib import Path
 
 import yaml
 from pydantic import BaseModel, ValidationError
-from sqlalchemy import func, select
+from sqlalchemy import func, or_, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
@@ -22,12 +27,13 @@ import rubric
 from rubric.scoring import lesson_run_specs
 
 from grader.core import lifecycle
-from grader.core.models import (Assignment, CopyFlag, PoolVariant, StudentVariant, Submission, User, VariantPool,
-                                utcnow)
+from grader.core.models import (Assignment, CaseRun, CopyFlag, Course, PoolVariant, StudentVariant, Submission, User,
+                                VariantPool, utcnow)
 from grader.core.rubrics import course_rubric
+from grader.core.settings import settings
 from grader.core.states import CaseRunState, PoolState, VariantState
 from grader.core.variants import as_variant, decide
-from grader.services.errors import Conflict, Invalid, NotFound
+from grader.services.errors import Conflict, Invalid, NotFound, Refused
 from grader.services.identity import access
 from grader.services.sending import Sender
 from grader.services.submissions.submit import create_submission
@@ -35,6 +41,8 @@ from grader.services.submissions.submit import create_submission
 log = logging.getLogger(__name__)
 
 K_DEFAULT, K_MAX = 16, 64
+# A pool refused while others are measuring: when to ask again (its page says how many of their runs remain).
+BUSY_RETRY_AFTER_S = 60
 # The answers a measuring submission carries (the lesson's reference sheet; its grade is never a student's). Its
 # configs are the variant's own exercise and extension cases, so a student's config made from the variant's baseline
 # reuses their measurement (grader/core/content_key.py).
@@ -56,6 +64,20 @@ class VariantRow(BaseModel):
     check_passed: bool | None
 
 
+class PoolRuns(BaseModel):
+    """What measuring the pool costs, and where its case runs are: all its measuring submissions' runs, how many wait
+    in a queue, run now or finished, how many a stored measurement covered (nothing ran), the case time those that
+    ran took so far, and the priority they wait at (lifecycle.POOL_PRIORITY: behind every student's runs)."""
+
+    total: int
+    queued: int
+    running: int
+    finished: int
+    reused: int
+    case_s: float
+    priority: int
+
+
 class PoolView(BaseModel):
     assignment_id: int
     lesson: str
@@ -71,6 +93,7 @@ class PoolView(BaseModel):
     created_at: datetime
     ready_at: datetime | None
     rejected_draws: dict[str, int]
+    runs: PoolRuns
     variants: list[VariantRow]
 
 
@@ -92,6 +115,36 @@ def pool_of(session: Session, assignment: Assignment) -> VariantPool | None:
     return session.scalar(select(VariantPool).where(VariantPool.assignment_id == assignment.id))
 
 
+def k_max() -> int:
+    """The most variants a pool may ask for here: the variant space's K_MAX, or less (settings.variant_pool_k_max)."""
+    return min(K_MAX, settings.variant_pool_k_max)
+
+
+def _refuse_past_measuring_caps(session: Session, course_id: int, user: User) -> None:
+    """Refused (429, Retry-After) while the instructor or the course has as many pools measuring as
+    settings.variant_pools_measuring_per_instructor / _per_course allow. The course's row is locked first (PostgreSQL),
+    so two pools asked for at once are counted one after the other; the caller commits."""
+    session.get(Course, course_id, with_for_update=True)
+    measuring = (select(VariantPool).join(Assignment, VariantPool.assignment_id == Assignment.id)
+                 .where(Assignment.course_id == course_id, VariantPool.state == PoolState.MEASURING))
+    mine = measuring.where(or_(VariantPool.created_by_id == user.id, VariantPool.id.in_(
+        select(PoolVariant.pool_id).join(Submission, PoolVariant.submission_id == Submission.id)
+        .where(Submission.student_id == user.id, PoolVariant.state == VariantState.MEASURING))))
+    for query, limit, setting, whose in (
+            (mine, settings.variant_pools_measuring_per_instructor, "variant_pools_measuring_per_instructor",
+             "instructor"),
+            (measuring, settings.variant_pools_measuring_per_course, "variant_pools_measuring_per_course", "course")):
+        busy = session.scalars(query.order_by(VariantPool.id)).all()
+        if len(busy) >= limit:
+            titles = ", ".join(f"“{p.assignment.title}”" for p in busy)
+            rule = (f"at most {limit} variant pool{'s' if limit != 1 else ''} measured at once per {whose} "
+                    f"({setting}); still measuring: {titles}. Generate this one once "
+                    f"{'it is' if len(busy) == 1 else 'one is'} ready")
+            raise Refused("assignment", rule, BUSY_RETRY_AFTER_S, detail="variant pool refused",
+                          reason=f"pools_measuring_{whose}", facts={"limit": limit, "setting": setting,
+                                                                   "measuring": [p.assignment.title for p in busy]})
+
+
 def _space_for(session: Session, assignment: Assignment):
     book = course_rubric(session, assignment.course_id, assignment.lesson)
     space = rubric.variant_space_for(book) if isinstance(book, rubric.Rubric) else None
@@ -106,13 +159,15 @@ def _space_for(session: Session, assignment: Assignment):
 def generate(*, session: Session, assignment: Assignment, user: User, seed: int, k: int = K_DEFAULT) -> VariantPool:
     """Draw and store a pool of `k` variants for `assignment` from `seed` (deterministic: rubric.draw_pool), each
     'drawn' until `measure` sends its runs; commits. Instructors of the course only; refused once the assignment has
-    opened, while it has a pool already (one pool per assignment: its variants may be some student's), and for a
-    rubric version without a variant space."""
+    opened, while it has a pool already (one pool per assignment: its variants may be some student's), for a
+    rubric version without a variant space, past k_max() (422), and while the instructor or the course has as many
+    pools measuring as the settings allow (429: _refuse_past_measuring_caps)."""
     access.require_course_instructor(user, assignment.course_id, action="generate a variant pool",
                                      thing="assignment")
     rules = []
-    if not 1 <= k <= K_MAX:
-        rules.append({"field": "k", "rule": f"between 1 and {K_MAX} variants"})
+    if not 1 <= k <= k_max():
+        rules.append({"field": "k", "rule": f"between 1 and {k_max()} variants" + (
+            " (this service's limit, variant_pool_k_max)" if k_max() < K_MAX else "")})
     if not 0 <= seed < 2**31:
         rules.append({"field": "seed", "rule": "a whole number from 0 to 2147483647"})
     if rules:
@@ -132,6 +187,7 @@ def generate(*, session: Session, assignment: Assignment, user: User, seed: int,
                        reason="pool_exists", facts={"assignment": assignment.title, "seed": existing.seed,
                                                     "k": existing.k, "students": taken})
     book, space = _space_for(session, assignment)
+    _refuse_past_measuring_caps(session, assignment.course_id, user)
     try:
         drawn = rubric.draw_pool(space, seed=seed, k=k)
     except rubric.VariantPoolError as exc:
@@ -222,7 +278,7 @@ def measure(*, session: Session, pool: VariantPool, user: User, sender: Sender) 
             log.exception("could not enqueue the grading of measuring submission %s", submission_id)
     for run in to_send:
         try:
-            sender.send_case_run(run.id, run.delivery, run.backend, priority=lifecycle.NEW_PRIORITY)
+            sender.send_case_run(run.id, run.delivery, run.backend, priority=lifecycle.POOL_PRIORITY)
         except Exception:  # stored and queued: the reconciler re-sends it
             log.exception("could not enqueue case run %s of a variant pool", run.id)
     return measuring
@@ -240,8 +296,8 @@ def generate_and_measure(*, session: Session, assignment: Assignment, user: User
 def top_up(*, session: Session, assignment: Assignment, user: User, sender: Sender) -> list[PoolVariant]:
     """Draw the pool further until it may keep K variants: the next draws of the same seed (draws are sequential, so
     the pool stays reproducible), one per variant dropped, measured like the first. Instructors of the course only,
-    once the pool is ready with fewer than K kept, before the assignment opens and while no student has a variant.
-    Returns the variants added."""
+    once the pool is ready with fewer than K kept, before the assignment opens and while no student has a variant,
+    within the caps on pools measuring at once (as `generate`). Returns the variants added."""
     access.require_course_instructor(user, assignment.course_id, action="draw a variant pool further",
                                      thing="assignment")
     pool = pool_of(session, assignment)
@@ -262,6 +318,7 @@ def top_up(*, session: Session, assignment: Assignment, user: User, sender: Send
         raise Conflict("the pool is not drawn further", [{"field": "assignment", "rule": rule}],
                        reason=f"top_up_{why}", facts={"assignment": assignment.title, "kept": kept, "k": pool.k,
                                                       "at": assignment.open_at})
+    _refuse_past_measuring_caps(session, assignment.course_id, user)
     space = rubric.load_variant_space(pool.lesson, pool.space_version)
     drawn_so_far = len(pool.variants)
     try:
@@ -294,13 +351,32 @@ def pool_view(*, session: Session, assignment: Assignment, user: User) -> PoolVi
                        parameters=v.parameters, students=students.get(v.id, 0), measuring_submission=v.submission_id,
                        check_passed=(v.check or {}).get("passed") if v.check else None) for v in pool.variants]
     creator = session.get(User, pool.created_by_id)
+    runs = _runs_of(session, [v.submission_id for v in pool.variants if v.submission_id is not None])
     return PoolView(assignment_id=assignment.id, lesson=pool.lesson, space_version=pool.space_version,
                     space_hash=pool.space_hash, rubric_version=pool.rubric_version, seed=pool.seed, k=pool.k,
                     state=pool.state, kept=sum(r.state == VariantState.KEPT for r in rows),
                     dropped=sum(r.state == VariantState.DROPPED for r in rows), created_by=creator.name,
                     created_at=pool.created_at, ready_at=pool.ready_at,
                     rejected_draws=dict(Counter(reason.split(":")[0] for r in pool.rejected for reason in r["reasons"])),
-                    variants=rows)
+                    runs=runs, variants=rows)
+
+
+def _runs_of(session: Session, submission_ids: list[int]) -> PoolRuns:
+    """PoolRuns of the pool's measuring submissions."""
+    by_state, reused, case_s = Counter(), 0, 0.0
+    if submission_ids:
+        for status, was_reused, n, wall in session.execute(
+                select(CaseRun.status, CaseRun.reused_from_id.is_not(None), func.count(), func.sum(CaseRun.wall_s))
+                .where(CaseRun.submission_id.in_(submission_ids)).group_by(CaseRun.status,
+                                                                           CaseRun.reused_from_id.is_not(None))):
+            by_state[status] += n
+            reused += n if was_reused else 0
+            case_s += float(wall or 0.0) if not was_reused else 0.0
+    waiting = (CaseRunState.QUEUED, CaseRunState.RUNNING)
+    return PoolRuns(total=sum(by_state.values()), queued=by_state[CaseRunState.QUEUED],
+                    running=by_state[CaseRunState.RUNNING],
+                    finished=sum(n for status, n in by_state.items() if status not in waiting), reused=reused,
+                    case_s=round(case_s, 1), priority=lifecycle.POOL_PRIORITY)
 
 
 def copy_flags(*, session: Session, assignment: Assignment, user: User) -> list[FlagRow]:

@@ -14,10 +14,11 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.core import clock, warmth
-from grader.core.lifecycle import NEW_PRIORITY, REQUEUED_PRIORITY, fair_priority
+from grader.core.lifecycle import NEW_PRIORITY, POOL_PRIORITY, REQUEUED_PRIORITY, fair_priority
 from grader.core.models import CaseRun, Submission, User
 from grader.core.settings import settings
 from grader.core.states import CaseRunPurpose, CaseRunState, ExecutionMode, SubmissionState
+from grader.core.variants import measuring_submissions
 from grader.services.identity import access
 
 # The last measured runs an estimate is taken over: enough to be steady, few enough to follow a faster worker.
@@ -231,12 +232,13 @@ def queue_order(session: Session, backend: str) -> list[int]:
     """The ids of the runs queued on `backend`, in the order a worker draws them: by the priority their message was
     sent at, then by the time they were queued.
 
-    The priority is not stored; it is the one the senders gave, rebuilt from the rows: a re-sent run (delivery > 1)
-    the reconciler's REQUEUED_PRIORITY, an audit run NEW_PRIORITY, and a submission's run the fair priority of how many
-    of the same student's runs on this backend were waiting or running when it was sent
-    (grader.services.submissions.submit._fair_priorities)."""
+    The priority is not stored; it is the one the senders gave, rebuilt from the rows: a variant pool's measuring run
+    POOL_PRIORITY (sent and re-sent), a re-sent run (delivery > 1) the reconciler's REQUEUED_PRIORITY, an audit run
+    NEW_PRIORITY, and a submission's run the fair priority of how many of the same student's runs on this backend were
+    waiting or running when it was sent (grader.services.submissions.submit._fair_priorities)."""
     queued = session.execute(
-        select(CaseRun.id, CaseRun.delivery, CaseRun.purpose, CaseRun.queued_at, Submission.student_id)
+        select(CaseRun.id, CaseRun.delivery, CaseRun.purpose, CaseRun.queued_at, Submission.student_id,
+               CaseRun.submission_id.in_(measuring_submissions()).label("pool"))
         .join(Submission, CaseRun.submission_id == Submission.id)
         .where(CaseRun.backend == backend, CaseRun.status == CaseRunState.QUEUED)).all()
     if not queued:
@@ -245,7 +247,9 @@ def queue_order(session: Session, backend: str) -> list[int]:
                             since=min(row.queued_at for row in queued))
     keyed = []
     for row in queued:
-        if row.purpose == CaseRunPurpose.AUDIT:
+        if row.pool:
+            priority = POOL_PRIORITY
+        elif row.purpose == CaseRunPurpose.AUDIT:
             priority = NEW_PRIORITY
         elif row.delivery > 1:
             priority = REQUEUED_PRIORITY

@@ -17,7 +17,8 @@ router = APIRouter(tags=["assignments"], responses=errors(401, 404, 422))
 
 
 @router.post("/assignments/{assignment_id}/variants", status_code=status.HTTP_201_CREATED, response_model=PoolView,
-             responses=errors(403, 409, 413, _409="The assignment has opened, or has a pool already"))
+             responses=errors(403, 409, 413, 429, _409="The assignment has opened, or has a pool already",
+                              _429="The instructor or the course has as many pools measuring as the service allows"))
 def generate_pool(assignment: InstructorsAssignment, body: VariantPoolCreate, session: SessionDep, user: CurrentUser):
     """Draw K variants from the seed and queue every variant's lesson runs (an instructor of the course, before the
     assignment opens); each variant is kept or dropped, with its reason, once its lab check has run."""
@@ -27,7 +28,8 @@ def generate_pool(assignment: InstructorsAssignment, body: VariantPoolCreate, se
 
 
 @router.post("/assignments/{assignment_id}/variants/top-up", response_model=PoolView,
-             responses=errors(403, 409, _409="Still measuring, K kept already, opened, or students have variants"))
+             responses=errors(403, 409, 429, _409="Still measuring, K kept already, opened, or students have variants",
+                              _429="The instructor or the course has as many pools measuring as the service allows"))
 def top_up_pool(assignment: InstructorsAssignment, session: SessionDep, user: CurrentUser):
     """Draw the pool further from its seed, one variant per dropped one, and measure them (an instructor of the
     course, before the assignment opens); the pool is drawn reproducibly as the seed's next draws."""
