@@ -29,6 +29,6 @@ submit: Submissions: storing one with its case runs, taking one through its assi
   may read.
   public: create_submission, visible_submissions, submit
 visibility: What a user may see of a grade: the one rule, used by the API, the pages and every export.
-  public: visibility_of, withheld_items, next_shown_at, deciding_runs, withheld_runs, shown_report, GradeView,
-    grade_view, attempt_standing
+  public: visibility_of, withheld_items, next_shown_at, deciding_runs, withheld_runs, measurement_twins, shown_report,
+    GradeView, grade_view, attempt_standing
 """

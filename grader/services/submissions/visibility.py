@@ -20,21 +20,35 @@ runs decide an item comes from the grade itself, as the rubric's scoring rules r
 read (`backends`), for the items the rubric says are decided by measurement (kind `measured` or `computed`; a
 `conceptual` or `config` item is decided by no run). A measured item that names no run read them all (the engine
 version of every run's provenance), and before a grade exists every run is withheld while any item is.
+
+What a run measured, not its name, decides what it tells (issue 44): a run of the submission that measured the same as
+a deciding run is withheld with it (`measurement_twins`): the same content key, measurement or evidence row (a reused
+run), the same metrics but for the case's name, or bit-identical arrays. The colour-swapped control measures exactly
+the baseline, and a sheet's table exercise at 0.30 exactly the lesson's friction-table-0.30; either would otherwise
+answer a withheld item about the other under its own name.
 """
 
 from __future__ import annotations
 
+import hashlib
+import io
+import json
+import threading
+import zipfile
+from collections import OrderedDict
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from datetime import datetime
 
+import numpy as np
 from sqlalchemy import select
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, object_session
 
 from grader.core.grades import current_grade
-from grader.core.states import CountedAttempt, Visibility
+from grader.core.states import TERMINAL, CountedAttempt, Visibility
 from grader.core.timezones import iso
-from grader.core.models import Assignment, Grade, Submission, User, utcnow
+from grader.core.models import Assignment, CaseEvidence, CaseRun, Grade, Submission, User, utcnow
 from grader.services.setup.assignments import counted_for, dates_for, item_ids, penalty_fraction
 from grader.services.identity import access
 
@@ -117,10 +131,12 @@ def deciding_runs(item: dict, runs: list[str]) -> list[str]:
     return list(item.get("backends") or {}) or list(runs)
 
 
-def withheld_runs(report: dict | None, hidden: dict[str, str], runs: list[str]) -> dict[str, str]:
+def withheld_runs(report: dict | None, hidden: dict[str, str], runs: list[str],
+                  twins: Mapping[str, Collection[str]] | None = None) -> dict[str, str]:
     """{case run name: why its measurements are withheld}: the runs deciding any withheld item of `report` (the
-    stored grade's), each with the items it decides and when they are shown. Without a report (not graded yet) every
-    run is withheld while any item is: nothing yet says which run decides which item."""
+    stored grade's), each with the items it decides and when they are shown, and each run of `twins` ({run: the runs
+    that measured the same}, `measurement_twins`) of a deciding one, which would tell the same. Without a report (not
+    graded yet) every run is withheld while any item is: nothing yet says which run decides which item."""
     if not hidden:
         return {}
     if report is None:
@@ -131,8 +147,89 @@ def withheld_runs(report: dict | None, hidden: dict[str, str], runs: list[str]) 
         if item["id"] in hidden:
             for run in deciding_runs(item, runs):
                 decides.setdefault(run, []).append(item["id"])
-    return {run: f"decides {', '.join(ids)}, " + "; ".join(sorted({hidden[i] for i in ids}))
-            for run, ids in sorted(decides.items())}
+    out = {run: f"decides {', '.join(ids)}, " + "; ".join(sorted({hidden[i] for i in ids}))
+           for run, ids in sorted(decides.items())}
+    for run in list(out):  # sorted: a twin of two deciding runs is named after the first
+        for twin in sorted((twins or {}).get(run, ())):
+            out.setdefault(twin, f"measured the same as {run}, which {out[run]}")
+    return out
+
+
+def _without_names(value):
+    """Stored metrics without the case's name (`case`, at the top and in each lane): what the run measured."""
+    if isinstance(value, dict):
+        return {k: _without_names(v) for k, v in value.items() if k != "case"}
+    if isinstance(value, list):
+        return [_without_names(v) for v in value]
+    return value
+
+
+# What each stored .npz holds, digested once per process by (evidence row, when it was stored): a student's report,
+# series and files each ask which runs measured alike while an item is withheld, and the archives are tens of kB. A row
+# stored again (a re-sent run's new try) has a new stored_at, so a stale digest is never read.
+_DIGESTS: OrderedDict[tuple[int, datetime], str] = OrderedDict()
+_DIGESTS_LOCK = threading.Lock()  # an API process serves reads on many threads
+DIGESTS_CACHED = 1024
+
+
+def _arrays_digest(session: Session, row: int, stored_at: datetime) -> str | None:
+    """sha256 of the arrays an evidence row's .npz holds (each array's name, dtype, shape and bytes, by name), not
+    of the archive's bytes, which also hold each entry's time; None for a row without arrays."""
+    with _DIGESTS_LOCK:
+        if (found := _DIGESTS.get((row, stored_at))) is not None:
+            _DIGESTS.move_to_end((row, stored_at))
+            return found
+    blob = session.scalar(select(CaseEvidence.arrays).where(CaseEvidence.case_run_id == row))
+    if not blob:
+        return None
+    digest = hashlib.sha256()
+    try:
+        with np.load(io.BytesIO(blob), allow_pickle=False) as arrays:
+            for name in sorted(arrays.files):
+                array = arrays[name]
+                digest.update(f"{name}\0{array.dtype.str}\0{array.shape}\0".encode())
+                digest.update(np.ascontiguousarray(array).tobytes())
+    except (ValueError, OSError, zipfile.BadZipFile):  # not arrays a case process writes: alike to nothing
+        return None
+    with _DIGESTS_LOCK:
+        _DIGESTS[(row, stored_at)] = digest.hexdigest()
+        while len(_DIGESTS) > DIGESTS_CACHED:
+            _DIGESTS.popitem(last=False)
+    return digest.hexdigest()
+
+
+def measurement_twins(runs: Sequence[CaseRun]) -> dict[str, list[str]]:
+    """{run name: the other runs of `runs` that measured the same}, for the runs that have any: one content key,
+    measurement or evidence row (a reused run reads its source's), equal metrics but for the case's name, or arrays
+    equal bit for bit; closed under "the same as" (a run alike to a twin is one too). Arrays are read only where two
+    runs' stored .npz have one size, and digested once per process (`_arrays_digest`)."""
+    finished = {r.name: r.reused_from_id or r.id for r in runs if r.status in TERMINAL}  # its evidence row
+    groups: dict[tuple, set[str]] = {}
+    for run in runs:
+        marks = [("key", run.content_key), ("measurement", run.measurement_id), ("evidence", finished.get(run.name)),
+                 ("metrics", json.dumps(_without_names(run.metrics), sort_keys=True) if run.metrics else None)]
+        for mark in marks:
+            if mark[1] is not None:
+                groups.setdefault(mark, set()).add(run.name)
+    session = object_session(runs[0]) if runs else None
+    if session is not None and len(set(finished.values())) > 1:
+        stored = session.execute(select(CaseEvidence.case_run_id, CaseEvidence.sizes, CaseEvidence.stored_at)
+                                 .where(CaseEvidence.case_run_id.in_(set(finished.values())))).all()
+        by_size: dict[int, list[tuple[int, datetime]]] = {}
+        for row, sizes, stored_at in stored:
+            if size := (sizes or {}).get("arrays.npz"):
+                by_size.setdefault(size, []).append((row, stored_at))
+        digests = {row: _arrays_digest(session, row, at)
+                   for rows in by_size.values() if len(rows) > 1 for row, at in rows}
+        for name, row in finished.items():
+            if digests.get(row) is not None:
+                groups.setdefault(("arrays", digests[row]), set()).add(name)
+    alike = {r.name: {r.name} for r in runs}
+    for names in groups.values():  # merge every group sharing a run with this one, until none is left to merge
+        merged = set(names).union(*(alike[n] for n in names))
+        for name in merged:
+            alike[name] = merged
+    return {name: sorted(others - {name}) for name, others in alike.items() if len(others) > 1}
 
 
 def _evidence_withheld(item: dict, runs: dict[str, str]) -> dict:
@@ -147,14 +244,16 @@ def _evidence_withheld(item: dict, runs: dict[str, str]) -> dict:
     return item | masked
 
 
-def shown_report(report: dict, hidden: dict[str, str], runs: list[str] | None = None) -> dict:
+def shown_report(report: dict, hidden: dict[str, str], runs: list[str] | None = None,
+                 twins: Mapping[str, Collection[str]] | None = None) -> dict:
     """The stored report as a student may see it: each withheld item keeps its question, points and the student's
     own prediction, but its score is None and its feedback says when it will be shown; the total counts the shown
     items only and `pending` says which points are still to come. The lab check (its conditions' evidence is
-    measured against the same tolerances) is left out until nothing is withheld. Nothing is regraded on release."""
+    measured against the same tolerances) is left out until nothing is withheld. Nothing is regraded on release.
+    `twins`: the runs that measured the same as each run (`measurement_twins`), withheld with a deciding one."""
     if not hidden:
         return report
-    withheld = withheld_runs(report, hidden, runs if runs is not None else _read_runs(report))
+    withheld = withheld_runs(report, hidden, runs if runs is not None else _read_runs(report), twins)
     items, total, shown_max, pending_points = [], 0.0, 0.0, 0.0
     for item in report.get("items", []):
         if item["id"] not in hidden and set(item.get("backends") or {}) & set(withheld):
@@ -220,20 +319,30 @@ class GradeView:
         """The report as this user may see it (the stored one where nothing is withheld)."""
         if not self.shown:
             return None
-        return shown_report(self.stored.report, self.hidden, self.run_names) if self.hidden else self.stored.report
+        if not self.hidden:
+            return self.stored.report
+        return shown_report(self.stored.report, self.hidden, self.run_names, self.twins)
 
     @property
     def run_names(self) -> list[str]:
         return [r.name for r in self.submission.case_runs]
 
     @cached_property
+    def twins(self) -> dict[str, list[str]]:
+        """{run name: the submission's other runs that measured the same} (`measurement_twins`); read only while
+        something is withheld."""
+        return measurement_twins(self.submission.case_runs) if self.hidden else {}
+
+    @cached_property
     def withheld_runs(self) -> dict[str, str]:
         """{case run name: why} of the runs whose measurements this user may not see yet (see `withheld_runs`):
-        their series, metrics, provenance and evidence files. A function of `hidden`, the stored grade and the
-        submission's runs, which the report's validator (grader.web.etag.report_state) already covers."""
+        their series, metrics, provenance and evidence files, and those of every run that measured the same. A
+        function of `hidden`, the stored grade and the submission's runs (their states and deliveries say when what
+        they measured changes), which the report's validator (grader.web.etag.report_state) already covers."""
         if not self.hidden:
             return {}
-        return withheld_runs(self.stored.report if self.stored is not None else None, self.hidden, self.run_names)
+        return withheld_runs(self.stored.report if self.stored is not None else None, self.hidden, self.run_names,
+                             self.twins)
 
     @property
     def total(self) -> float | None:

@@ -101,6 +101,110 @@ def test_the_runs_deciding_a_withheld_item_are_withheld_on_every_surface_until_r
     assert _get(api, f"/v1/submissions/{sid}/case-runs/N1/files/metrics.json").status_code == 200
 
 
+
+def _stops(metrics: dict) -> list[str]:
+    """A friction run's lanes' stops as the report page's lane table writes them."""
+    return [f"{s['distance']:.3f} m at t={s['time']:.2f} s" for lane in metrics["lanes"].values()
+            if (s := lane["stop"])["stopped"]]
+
+
+def test_a_run_that_measured_the_same_as_a_deciding_one_is_withheld_with_it_whatever_its_name(api, measured):
+    """Issue 44, finding 5: with B3 withheld, its deciding runs (friction-baseline, sheet.table_exercise) answered 409
+    while the colour-swapped control (the baseline's twin, bit for bit) and the lesson's friction-table-0.30 (the
+    sheet's table exercise, measured alike) answered 200 with the same stops and arrays, on every surface."""
+    aid = create(api, part="exercises", item_visibility={"B3": "on_release"}).json()["id"]
+    sid = free_graded(api, measured, complete=True)
+    staff = {i["id"]: i for i in grade_of(api, sid, "prof").json()["items"]}
+    deciding = set(staff["B3"]["backends"])
+    twins = {"friction-baseline-colors-swapped": "friction-baseline", "friction-table-0.30": "sheet.table_exercise"}
+    assert deciding == set(twins.values()), staff["B3"]
+    files = {r: _get(api, f"/v1/submissions/{sid}/case-runs/{r}/files/arrays.npz", "prof").content
+             for r in (*twins, *twins.values())}
+    metrics = {r: _get(api, f"/v1/submissions/{sid}/case-runs/{r}/files/metrics.json", "prof").json()
+               for r in (*twins, *twins.values())}
+    for twin, run in twins.items():  # what the twins measured is what the deciding runs did, under another name
+        assert files[twin] == files[run] and _stops(metrics[twin]) == _stops(metrics[run]), twin
+    stops = {s for m in metrics.values() for s in _stops(m)}
+    assert stops, metrics
+
+    # Evidence downloads (API and page) answer as for the deciding run, naming the run it measured the same as.
+    for twin, run in twins.items():
+        for name in ("arrays.npz", "metrics.json", "provenance.json"):
+            refused = _get(api, f"/v1/submissions/{sid}/case-runs/{twin}/files/{name}")
+            assert refused.status_code == 409, (twin, name, refused.status_code)
+            assert f"measured the same as {run}, which decides B3" in refused.json()["detail"], refused.text
+            assert _get(api, f"/submissions/{sid}/case-runs/{twin}/{name}").status_code == 409, (twin, name)
+            assert _get(api, f"/v1/submissions/{sid}/case-runs/{twin}/files/{name}", "prof").status_code == 200
+    withheld = deciding | set(twins)
+    # The API's case runs, grade and results.json; the charts' series (page and API); the page's lane table.
+    listed = {r["name"]: r for r in _get(api, f"/v1/submissions/{sid}/case-runs").json()}
+    assert all(listed[r]["metrics"] is None and listed[r]["provenance"] is None for r in withheld)
+    assert listed["N1"]["metrics"] is not None
+    assert set(grade_of(api, sid, "alice").json()["withheld_measurements"]) == withheld
+    assert set(_get(api, f"/submissions/{sid}/results.json").json()["withheld_measurements"]) == withheld
+    for path in (f"/submissions/{sid}/series.json", f"/v1/submissions/{sid}/series"):
+        doc = _get(api, path)
+        runs = {r["name"]: r for r in doc.json()["runs"]}
+        assert set(doc.json()["withheld"]) == withheld, path
+        assert all(runs[r]["status"] == "withheld" and "series" not in runs[r] for r in withheld), path
+        assert "series" in runs["N1"], path
+        staff_series = {r["name"]: r for r in _get(api, path, "prof").json()["runs"]}
+        assert all("series" in staff_series[r] for r in withheld), path
+    page, staff_page = (html.unescape(_get(api, f"/submissions/{sid}", who).text) for who in ("alice", "prof"))
+    assert stops <= {s for s in stops if s in staff_page} and not [s for s in stops if s in page]
+    for twin in twins:  # no friction chart of it, nor its caption
+        assert f'id="figure-friction-x-{twin}"' in staff_page and f'id="figure-friction-x-{twin}"' not in page, twin
+
+    # Released: the student reads every one of them.
+    assert api.client.post(f"/v1/assignments/{aid}/release", headers=api.as_("prof")).status_code == 200
+    for twin in twins:
+        shown = _get(api, f"/v1/submissions/{sid}/case-runs/{twin}/files/arrays.npz")
+        assert shown.status_code == 200 and shown.content == files[twin], twin
+    assert _get(api, f"/v1/submissions/{sid}/series").json()["withheld"] == {}
+    assert all(s in html.unescape(_get(api, f"/submissions/{sid}").text) for s in stops)
+
+
+
+def test_runs_measured_alike_by_key_by_evidence_by_metrics_or_by_arrays_are_twins(api, measured):
+    """Which of a submission's runs measured the same (grader.services.submissions.visibility.measurement_twins), on
+    its stored runs: one content key, one evidence row (a reused run), metrics equal but for the case's name, or arrays
+    equal bit for bit in an archive of other bytes; equal-sized arrays that differ are no twins."""
+    import io
+
+    import numpy as np
+
+    from grader.core.db import new_session
+    from grader.core.models import CaseEvidence, Submission, utcnow
+    from grader.services.submissions.visibility import measurement_twins
+    from tests.grader.core.test_grade_then_complete import _submission_ready_to_grade
+
+    sid = _submission_ready_to_grade(api, measured)
+    with new_session() as session:
+        runs = {r.name: r for r in session.get(Submission, sid).case_runs}
+        runs["N2"].content_key = runs["N3"].content_key = "same inputs"
+        runs["N4"].reused_from_id = runs["N1"].id  # N4 finished on N1's measurement
+        swapped = runs["friction-baseline-colors-swapped"]
+        swapped.metrics = swapped.metrics | {"note": "not the baseline's metrics"}
+        evidence = session.get(CaseEvidence, swapped.id)
+        arrays = np.load(io.BytesIO(evidence.arrays))
+        buffer = io.BytesIO()
+        np.savez(buffer, **{k: arrays[k] for k in reversed(arrays.files)})  # the same arrays, written otherwise
+        assert buffer.getvalue() != evidence.arrays and len(buffer.getvalue()) == evidence.sizes["arrays.npz"]
+        evidence.arrays, evidence.stored_at = buffer.getvalue(), utcnow()
+        table = session.get(CaseEvidence, runs["sheet.table_exercise"].id)  # other arrays (times 1 ns on), the same metrics
+        arrays = dict(np.load(io.BytesIO(table.arrays)))
+        arrays["t"] = arrays["t"] + 1e-9
+        buffer = io.BytesIO()
+        np.savez(buffer, **arrays)
+        table.arrays, table.stored_at = buffer.getvalue(), utcnow()
+        session.commit()
+        assert measurement_twins(session.get(Submission, sid).case_runs) == {
+            "N1": ["N4"], "N4": ["N1"], "N2": ["N3"], "N3": ["N2"],
+            "friction-baseline": ["friction-baseline-colors-swapped"],
+            "friction-baseline-colors-swapped": ["friction-baseline"],
+            "friction-table-0.30": ["sheet.table_exercise"], "sheet.table_exercise": ["friction-table-0.30"]}
+
+
 def test_a_report_whose_withheld_item_carries_an_override_does_not_say_every_score_is_measured(api, measured):
     aid, sid, _ = _a2_withheld(api, measured)
     made = api.client.post(f"/v1/submissions/{sid}/overrides", headers=api.as_("prof"),
