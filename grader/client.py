@@ -19,6 +19,25 @@ def load_sheet(path: Path) -> dict:
     return sheet_files.load_yaml(text) if path.suffix in (".yaml", ".yml") else sheet_files.load_json(text)
 
 
+# The longest a poll waits on one 429's Retry-After (the API's own limits ask for seconds; a minute at most).
+MAX_RETRY_AFTER_S = 60.0
+
+
+class ApiError(RuntimeError):
+    """An error answer: `status`, and `retry_after` (seconds) where the API said when to come back."""
+
+    def __init__(self, message: str, *, status: int, retry_after: float | None):
+        super().__init__(message)
+        self.status, self.retry_after = status, retry_after
+
+
+def _retry_after(response: httpx.Response) -> float | None:
+    try:  # the API writes seconds (grader.web.admission, grader.services.identity.quotas), never an HTTP date
+        return min(max(float(response.headers["retry-after"]), 0.0), MAX_RETRY_AFTER_S)
+    except (KeyError, ValueError):
+        return None
+
+
 class Client:
     def __init__(self, url: str, token: str, *, timeout: float = 30.0):
         self.http = httpx.Client(base_url=url.rstrip("/") + "/v1", headers={"Authorization": f"Bearer {token}"},
@@ -28,7 +47,8 @@ class Client:
         if response.is_error:
             body = response.json() if "json" in response.headers.get("content-type", "") else {"detail": response.text}
             lines = [body.get("detail", "")] + [f"  {e['field']}: {e['rule']}" for e in body.get("errors", [])]
-            raise RuntimeError(f"HTTP {response.status_code}: " + "\n".join(lines))
+            raise ApiError(f"HTTP {response.status_code}: " + "\n".join(lines), status=response.status_code,
+                          retry_after=_retry_after(response))
         return response.json()
 
     def submit(self, sheet: dict, **options) -> dict:
@@ -116,10 +136,22 @@ class Client:
     def wait(self, submission_id: int, *, poll_s: float = 1.0, on_progress: Callable[[dict], None] | None = None,
              timeout_s: float | None = None, complete: bool = True) -> dict:
         """Poll until failed, or graded with its report complete (its lab check stored; `complete=False`:
-        graded is enough); on_progress gets every status body."""
+        graded is enough); on_progress gets every status body. A poll refused with 429 (this address's requests in
+        flight, while other clients of the same address stall theirs) is waited out as its Retry-After says, never
+        taken for the submission's end."""
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
         while True:
-            state = self.submission(submission_id)
+            try:
+                state = self.submission(submission_id)
+            except ApiError as refused:
+                if refused.status != 429:
+                    raise
+                wait_s = refused.retry_after if refused.retry_after is not None else poll_s
+                if deadline is not None and time.monotonic() + wait_s > deadline:
+                    raise TimeoutError(f"submission {submission_id}: its status refused (429) until the timeout, "
+                                       f"{timeout_s} s") from None
+                time.sleep(wait_s)
+                continue
             if on_progress:
                 on_progress(state)
             if state["status"] == SubmissionState.FAILED or (state["status"] == SubmissionState.GRADED

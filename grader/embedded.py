@@ -57,7 +57,40 @@ def start_worker(log_path: Path) -> subprocess.Popen:
                             start_new_session=True)
 
 
-def start_api(host: str, port: int):
+# How long the worker's main process has for Celery's warm shutdown (a running case finishing, each slot closing its
+# warm case process) before what is left of its process group is stopped.
+WORKER_GRACE_S = 10.0
+
+
+def stop_worker(worker: subprocess.Popen, *, grace_s: float = WORKER_GRACE_S) -> None:
+    """Stop the worker and every process under it. start_worker made it the leader of its own process group, which
+    its pool processes, their warm case processes and a kernel compile all stay in: SIGTERM to the main process
+    first (the warm shutdown), then SIGTERM and at last SIGKILL to whatever is left of the group, also after the main
+    process is gone (a warm case process busy warming up outlives the pool process that started it)."""
+    if worker.poll() is None:
+        worker.terminate()
+        try:
+            worker.wait(timeout=grace_s)
+        except subprocess.TimeoutExpired:
+            pass
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        try:
+            os.killpg(worker.pid, sig)
+        except ProcessLookupError:  # nothing of the group is left
+            break
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline:
+            worker.poll()  # reaped, the main process no longer counts as the group's
+            try:
+                os.killpg(worker.pid, 0)
+            except ProcessLookupError:
+                break
+            time.sleep(0.1)
+    worker.wait()
+
+
+def start_api(host: str, port: int) -> tuple[object, threading.Thread]:
+    """uvicorn serving the app on a thread of this process, once it listens: the server and its thread."""
     import uvicorn  # lazy: only `grader run` serves; `grader submit` imports this module for follow/summary
 
     # proxy_headers off: uvicorn would trust X-Forwarded-For from 127.0.0.1, where every local client comes from; the
@@ -70,7 +103,7 @@ def start_api(host: str, port: int):
         if not thread.is_alive():
             raise click.ClickException(f"the API could not start on {host}:{port} (port in use?)")
         time.sleep(0.05)
-    return server
+    return server, thread
 
 
 def reconcile_forever(stop: threading.Event) -> None:
@@ -174,16 +207,35 @@ def summary(client, submission_id: int, state: dict, url: str, sign_in_link: str
     return folder
 
 
+def _ignore_stops() -> None:
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.SIG_IGN)
+
+
+def _stop_once(signum, frame) -> None:
+    """Ctrl-C or SIGTERM: stop (KeyboardInterrupt), once; a second one while stopping is ignored."""
+    _ignore_stops()
+    raise KeyboardInterrupt
+
+
 def run(*, host: str, port: int, sheet: Path, exit_after_grading: bool) -> int:
-    settings.data_dir.mkdir(parents=True, exist_ok=True)
-    click.echo(f"embedded service: database {settings.database_url}, broker {settings.broker_url}")
-    tokens, link = bootstrap()
-    worker = start_worker(settings.data_dir / "worker.log")
-    server = start_api(host, port)
-    url = f"http://{host}:{port}"
-    stop = threading.Event()
-    threading.Thread(target=reconcile_forever, args=(stop,), daemon=True).start()
+    """The embedded service until graded (`exit_after_grading`) or Ctrl-C / SIGTERM: 0 graded, 1 failed, 130
+    stopped. However it ends (an error too), every process and thread it started is stopped first: the worker with
+    its warm case processes (stop_worker), the API's uvicorn and the reconciler."""
+    handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    for sig in handlers:  # SIGTERM stops like Ctrl-C from the start: before the first grade it left the worker running
+        signal.signal(sig, _stop_once)
+    worker, server, threads, stop = None, None, [], threading.Event()
     try:
+        settings.data_dir.mkdir(parents=True, exist_ok=True)
+        click.echo(f"embedded service: database {settings.database_url}, broker {settings.broker_url}")
+        tokens, link = bootstrap()
+        worker = start_worker(settings.data_dir / "worker.log")
+        server, serving = start_api(host, port)
+        threads.append(serving)
+        url = f"http://{host}:{port}"
+        threads.append(threading.Thread(target=reconcile_forever, args=(stop,), daemon=True))
+        threads[-1].start()
         click.echo(f"API at {url} (docs {url}/docs); worker log {settings.data_dir.absolute() / 'worker.log'}")
         click.echo(f"student token: {tokens['student']}\ninstructor token: {tokens['instructor']}")
         client = Client(url, tokens["student"])
@@ -194,17 +246,19 @@ def run(*, host: str, port: int, sheet: Path, exit_after_grading: bool) -> int:
         summary(client, created["id"], state, url, sign_in_link=f"{url}{sign_in_links.PATH}{link}")
         if not exit_after_grading:
             click.echo(f"serving at {url} until Ctrl-C")
-            signal.signal(signal.SIGTERM, signal.default_int_handler)  # SIGTERM stops cleanly, like Ctrl-C
             while True:
                 time.sleep(3600)
         return 0 if state["status"] == SubmissionState.GRADED else 1
     except KeyboardInterrupt:
         return 130
     finally:
+        _ignore_stops()  # however it ended: a Ctrl-C now must not cut the stopping short, which is bounded
         stop.set()
-        server.should_exit = True
-        worker.terminate()
-        try:
-            worker.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            worker.kill()
+        if server is not None:
+            server.should_exit = True
+        if worker is not None:
+            stop_worker(worker)
+        for thread in threads:
+            thread.join(timeout=10)
+        for sig, handler in handlers.items():
+            signal.signal(sig, handler)

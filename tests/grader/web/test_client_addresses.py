@@ -1,9 +1,11 @@
-"""Whose address a request has (issue 44, finding 6c): X-Forwarded-For counts only from a configured proxy
-(settings.forwarded_allow_ips, none by default), under the uvicorn that `grader run` starts (grader.embedded)."""
+"""One client address under the uvicorn that `grader run` starts (grader.embedded), issue 44 finding 6: whose address
+a request has (X-Forwarded-For counts only from a configured proxy, settings.forwarded_allow_ips, none by default),
+and the embedded service's own progress poll, refused while other requests of its address stall (429), waits."""
 
 from __future__ import annotations
 
 import socket
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -20,17 +22,12 @@ def embedded_api() -> Iterator[str]:
     from grader import embedded
 
     port = free_port()
-    server = embedded.start_api("127.0.0.1", port)
+    server, thread = embedded.start_api("127.0.0.1", port)
     try:
         yield f"http://127.0.0.1:{port}"
     finally:
         server.should_exit = True
-        deadline = time.monotonic() + 10
-        while time.monotonic() < deadline:  # closed before the fixture drops the database
-            with socket.socket() as probe:
-                if probe.connect_ex(("127.0.0.1", port)) != 0:
-                    break
-            time.sleep(0.05)
+        thread.join(timeout=10)  # closed before the fixture drops the database
 
 
 def wrong_sign_ins(url: str, forwarded_for: list[str]) -> list[int]:
@@ -63,3 +60,42 @@ def test_behind_a_configured_proxy_the_forwarded_address_is_the_clients(api, mon
     assert others == [401] * 25, others  # each address has its own count
     assert one == [401] * 20 + [429], one
     assert chained == [429] and another == [401]
+
+
+def test_the_progress_poll_waits_out_a_429_while_its_address_is_full_of_stalled_bodies(api, monkeypatch):
+    """As in the finding: anonymous requests from 127.0.0.1 that never send their bodies fill the address's requests
+    in flight (settings.client_max_in_flight, 2 here, 20 by default), so the embedded service's poll is refused."""
+    from grader.client import Client
+    from grader.core.db import new_session
+    from grader.core.models import Submission
+    from grader.core.settings import settings
+    from grader.core.states import SubmissionState
+    from tests.factories import reference_sheet
+
+    created = api.client.post("/v1/submissions", json={"sheet": reference_sheet()}, headers=api.as_("alice"))
+    assert created.status_code == 202, created.text
+    with new_session() as session:  # a submission that ends at the first answer the poll gets
+        session.get(Submission, created.json()["id"]).status = SubmissionState.FAILED
+        session.commit()
+    monkeypatch.setattr(settings, "client_max_in_flight", 2)
+    with embedded_api() as url:
+        port = int(url.rsplit(":", 1)[1])
+        stalled = [socket.create_connection(("127.0.0.1", port)) for _ in range(2)]
+        for connection in stalled:  # headers, and a body that never comes
+            connection.sendall(b"POST /v1/submissions HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                               b"Content-Type: application/json\r\nContent-Length: 100\r\n\r\n")
+        deadline = time.monotonic() + 10
+        while httpx.get(f"{url}/v1/health").status_code != 429:
+            assert time.monotonic() < deadline, "the stalled bodies never filled the address"
+            time.sleep(0.05)
+        threading.Timer(2.5, lambda: [connection.close() for connection in stalled]).start()
+        client = Client(url, api.tokens["alice"])
+        answers = []
+        client.http.event_hooks["response"] = [lambda response: answers.append(response.status_code)]
+        started = time.monotonic()
+        state = client.wait(created.json()["id"], poll_s=0.1, timeout_s=30)
+        waited = time.monotonic() - started
+    assert state["status"] == SubmissionState.FAILED
+    assert answers[0] == 429 and answers[-1] == 200 and set(answers) == {429, 200}, answers
+    # Each refusal said Retry-After: 1, and the poll waited that long rather than polling at once (every 0.1 s).
+    assert answers.count(429) <= 4 and waited >= 2.0, (answers, waited)
