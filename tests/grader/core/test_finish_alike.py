@@ -85,3 +85,27 @@ def test_a_failed_run_finishes_nothing(api):
     with new_session() as session:
         assert lifecycle.finish_alike(session, failed[0]) == []
     assert _run(_n1(waiting_sub)[0]).status == "queued"
+
+
+def test_a_queued_audit_rerun_of_the_case_is_left_to_measure_again(api):
+    """An audit re-run of the same case on the same backend and precision (its content key the measurement's) exists
+    to measure again: a grading run's new measurement finishes bob's queued grading run of the case, not the audit."""
+    from grader.core import lifecycle
+    from grader.core.audit import create_audit_rerun
+    from grader.core.db import new_session
+    from grader.core.models import CaseRun, User
+
+    measured_sub, audited_sub = _post(api, "alice"), _post(api, "bob")
+    with new_session() as session:
+        source = session.get(CaseRun, _n1(audited_sub)[0])
+        tess = session.scalars(select(User).where(User.name == "tess")).one()
+        audit_id = create_audit_rerun(session, source=source, backend=source.backend, precision=source.precision,
+                                      mode="isolated", user=tess).id
+        session.commit()
+    first = _measure_n1(measured_sub)
+
+    with new_session() as session:
+        lifecycle.finish_alike(session, first)
+    assert _run(_n1(audited_sub)[0]).reused_from_id == first  # the grading run of the same case: finished on it
+    audit = _run(audit_id)
+    assert (audit.status, audit.measurement_id, audit.reused_from_id) == ("queued", None, None)

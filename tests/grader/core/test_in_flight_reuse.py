@@ -161,3 +161,47 @@ def test_nobody_waits_for_a_run_held_by_a_dead_process(api):
         started = time.monotonic()
         assert case_run.await_measurement(session=session, run=second) is None
         assert time.monotonic() - started < 2
+
+
+def test_nobody_waits_for_a_run_whose_lease_has_ended(api):
+    """A run still marked running whose lease is over (its worker on another host gone, the reconciler not yet by)
+    measures nothing any more: a later run of the case steps it at once instead of waiting out the bound
+    (IN_FLIGHT_WAIT_MAX_S) for a measurement that never comes."""
+    from datetime import timedelta
+
+    from grader.core.db import new_session
+    from grader.core.models import CaseRun, utcnow
+
+    first, later = _n1(_post(api, "alice")), _n1(_post(api, "bob"))
+    _claim_and_key(*first)  # claimed by this (living) process: only its lease says it is gone
+    with new_session() as session:
+        session.get(CaseRun, first[0]).lease_until = utcnow() - timedelta(seconds=1)
+        session.commit()
+    started = time.monotonic()
+    with pytest.raises(Stepped):
+        _process(*later)
+    assert time.monotonic() - started < 5  # the wait's bound is IN_FLIGHT_WAIT_MAX_S (30 s)
+    assert _run(later[0]).reused_from_id is None
+
+
+def test_an_audit_rerun_measures_again_though_its_case_is_stored(api):
+    """An audit re-run on the very backend and precision of a stored measurement (its content key the same) steps the
+    case itself: neither a stored measurement nor the wait for one answers it."""
+    from grader.core.audit import create_audit_rerun
+    from grader.core.db import new_session
+    from grader.core.models import CaseRun, User
+
+    first = _n1(_post(api, "alice"))
+    key = _claim_and_key(*first)
+    _finish_first(first[0], key, ok=True, after_s=0).join()  # its measurement stored under `key`
+    with new_session() as session:
+        source = session.get(CaseRun, first[0])
+        tess = session.scalars(select(User).where(User.name == "tess")).one()
+        audit = create_audit_rerun(session, source=source, backend=source.backend, precision=source.precision,
+                                   mode="isolated", user=tess)
+        session.commit()
+        audit_id, delivery = audit.id, audit.delivery
+    with pytest.raises(Stepped):
+        _process(audit_id, delivery)
+    audit = _run(audit_id)
+    assert (audit.content_key, audit.measurement_id, audit.reused_from_id) == (key, None, None)

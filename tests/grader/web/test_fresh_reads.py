@@ -12,7 +12,7 @@ from contextlib import contextmanager
 from datetime import UTC, timedelta
 
 import pytest
-from sqlalchemy import event
+from sqlalchemy import event, select
 
 from tests.grader.web.test_etag import graded  # an assignment and its graded submission, as the ETag tests make them
 from tests.grader.services.setup.test_assignments import lesson_cases_stored  # noqa: F401 - autouse: the lesson measured
@@ -210,3 +210,119 @@ def test_with_the_store_down_every_read_takes_the_database_path(api, store, monk
     for pattern, tag in before.items():
         response = read(api, pattern.format(sid=sid), tag=tag)
         assert response.status_code == 200 and response.headers["etag"] != tag, pattern
+
+
+def test_a_token_that_expires_is_refused_at_once_not_confirmed_from_memory(api, store):
+    """An entry ends with the reader's credential: a token expiring sooner than the entries' last guard
+    (freshness.ENTRY_TTL_S) gets 401 at its expiry, not a 304 from an entry written while it was good."""
+    from grader.core import clock
+    from grader.core.db import new_session
+    from grader.core.models import User
+    from grader.services.identity import accounts
+
+    start = clock.now().replace(microsecond=0)
+    with clock.frozen(start.replace(tzinfo=UTC)):
+        _, sid = graded(api)
+        with new_session() as session:
+            alice = session.scalars(select(User).where(User.name == "alice")).one()
+            short = accounts.create_token(session=session, user=alice, expires_in_days=1)
+            session.commit()
+    expiry = start + timedelta(days=1)
+    bearer = {"Authorization": f"Bearer {short}"}
+    path = f"/v1/submissions/{sid}"
+    with clock.frozen((expiry - timedelta(seconds=30)).replace(tzinfo=UTC)):
+        first = read(api, path, None, **bearer)
+        assert first.status_code == 200, first.text
+        from_memory(api, path, first.headers["etag"], None, **bearer)
+    with clock.frozen((expiry - timedelta(seconds=1)).replace(tzinfo=UTC)):  # still good: still from memory
+        from_memory(api, path, first.headers["etag"], None, **bearer)
+    with clock.frozen((expiry + timedelta(seconds=1)).replace(tzinfo=UTC)):
+        expired = read(api, path, None, tag=first.headers["etag"], **bearer)
+        assert expired.status_code == 401 and "expired" in expired.json()["detail"], expired.status_code
+
+
+def test_two_students_page_sessions_never_share_an_entry(api, store):
+    """The Cookie header is part of the entry's key: bob's page session, sent with alice's ETag for her report, is
+    answered by the route (not found: it is not his), never 304 from alice's entry."""
+    _, sid = graded(api)
+    cookies = {}
+    for who in ("alice", "bob"):
+        api.client.cookies.clear()
+        signed = api.client.post("/sign-in", data={"token": api.tokens[who]}, follow_redirects=False)
+        assert signed.status_code == 303, signed.text
+        cookies[who] = f"grader_session={api.client.cookies['grader_session']}"
+    api.client.cookies.clear()
+    for pattern in ("/submissions/{sid}", "/submissions/{sid}/results.json"):
+        path = pattern.format(sid=sid)
+        mine = read(api, path, None, Cookie=cookies["alice"])
+        assert mine.status_code == 200, mine.text
+        from_memory(api, path, mine.headers["etag"], None, Cookie=cookies["alice"])
+        theirs = read(api, path, None, tag=mine.headers["etag"], Cookie=cookies["bob"])
+        assert theirs.status_code == 404 and "etag" not in theirs.headers, (path, theirs.status_code)
+
+
+def test_a_write_landing_while_a_report_is_read_retires_the_entry_that_read_keeps(api, store):
+    """The entry is kept under the epoch read before the request's first database read: a write committed after the
+    report's rows were read (here alice's token revoked, by another session, just as the route reads the report's
+    review requests) leaves the entry under the old epoch, so the next conditional read is a full one (401)."""
+    import threading
+
+    from grader.core import db
+    from grader.core.db import new_session
+    from grader.services.identity import accounts
+
+    _, sid = graded(api)
+    path = f"/v1/submissions/{sid}"
+    armed = [True]
+
+    def revoke():
+        with new_session() as session:
+            accounts.revoke_token(session=session, token_or_id=api.tokens["alice"])
+            session.commit()
+
+    def write_meanwhile(_conn, _cursor, statement, *_args):
+        if armed[0] and "FROM review_requests" in statement:  # grader.web.etag.report_state: its last read
+            armed[0] = False
+            writer = threading.Thread(target=revoke)  # another request's commit, not this one's session
+            writer.start()
+            writer.join()
+
+    engine = db.get_engine()
+    event.listen(engine, "after_cursor_execute", write_meanwhile)
+    try:
+        answered = read(api, path)
+    finally:
+        event.remove(engine, "after_cursor_execute", write_meanwhile)
+    assert not armed[0] and answered.status_code == 200, answered.text  # built from the rows read before the write
+    again = read(api, path, tag=answered.headers["etag"])
+    assert again.status_code == 401, again.status_code
+
+
+def test_a_bump_skipped_while_the_store_rests_is_paid_before_memory_answers_again(api, store, monkeypatch):
+    """A read that finds the store failing leaves it alone a moment (freshness.RETRY_S); a write committed meanwhile
+    cannot change the epoch, so the process owes the bump, and once the store answers again it pays it before
+    trusting any entry: the revoked token gets 401, never a 304 from an entry written before the revocation."""
+    import time
+
+    from grader.core import freshness
+    from grader.core.db import new_session
+    from grader.core.settings import settings
+    from grader.services.identity import accounts
+    from tests.services import free_port
+
+    _, sid = graded(api)
+    path = f"/v1/submissions/{sid}"
+    first = read(api, path)
+    assert first.status_code == 200, first.text
+    from_memory(api, path, first.headers["etag"])
+    working = settings.broker_url
+    monkeypatch.setattr(settings, "broker_url", f"redis://127.0.0.1:{free_port()}/0")  # nothing listens there
+    during = read(api, path, tag=first.headers["etag"])  # the store fails this read: the database answers
+    assert during.status_code == 304, during.status_code
+    with new_session() as session:  # within the rest that failure began: the bump is not even tried
+        accounts.revoke_token(session=session, token_or_id=api.tokens["alice"])
+        session.commit()
+    monkeypatch.setattr(settings, "broker_url", working)  # the store is back
+    time.sleep(freshness.RETRY_S + 0.1)  # past the rest
+    again = read(api, path, tag=first.headers["etag"])
+    assert again.status_code == 401, again.status_code

@@ -297,3 +297,34 @@ def test_counted_grades_name_each_students_variant_in_the_api_and_the_csv(api):
     plain = create(api, title="No pool").json()["id"]
     header = api.client.get(f"/v1/assignments/{plain}/grades.csv", headers=api.as_("prof")).text.splitlines()[0]
     assert "variant" not in header, header
+
+
+def test_no_student_gets_a_variant_while_the_pool_is_still_measuring_though_some_are_kept_already(api):
+    """A pool hands out variants once every one is kept or dropped: a student drawn earlier would be spread over the
+    variants kept so far, not over the pool."""
+    from grader.core.db import new_session
+    from grader.core.models import Assignment, PoolVariant, StudentVariant, Submission
+    from grader.core.variants import decide
+
+    assignment_id, pool_id = _services_pool(api, k=2)
+    with new_session() as session:
+        first, second = session.scalars(select(PoolVariant).where(PoolVariant.pool_id == pool_id)
+                                        .order_by(PoolVariant.position)).all()
+        first.state = second.state = "measuring"
+        decide(session, first, kept=True, reason=None)  # the second's lab check has not landed
+        session.get(Assignment, assignment_id).open_at -= timedelta(hours=2)
+        session.commit()
+        assert first.pool.state == "measuring"
+    posted = api.client.post("/v1/submissions", json={"sheet": reference_sheet(), "assignment_id": assignment_id},
+                             headers=api.as_("alice"))
+    assert posted.status_code == 409, posted.text
+    (error,) = posted.json()["errors"]
+    assert error["field"] == "assignment_id" and "still being measured" in error["rule"], error
+    with new_session() as session:
+        assert session.scalars(select(StudentVariant)).all() == []
+        assert session.scalars(select(Submission).where(Submission.assignment_id == assignment_id)).all() == []
+        second = session.get(PoolVariant, second.id)
+        decide(session, second, kept=True, reason=None)
+        session.commit()
+    assert api.client.post("/v1/submissions", json={"sheet": reference_sheet(), "assignment_id": assignment_id},
+                           headers=api.as_("alice")).status_code == 202
