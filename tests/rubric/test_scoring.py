@@ -365,3 +365,70 @@ def test_a_grade_stored_before_the_lab_check_was_recorded_still_parses(graded_ru
     stored = report.model_dump(mode="json")
     stored.pop("check")
     assert GradeReport.model_validate(stored).check is None
+
+
+# --- Issue 45, item 2: the L03 grades recorded before the lesson moves behind a lesson interface --------------------
+
+GOLDEN = Path(__file__).with_name("l03_golden.json")
+# Sheets whose grades the move must keep: the reference, each misconception, every sheet of SHEETS on its own runs, a
+# config that breaks the one-factor rule (two inputs of the table exercise), and a student on a variant (synthetic runs).
+TWO_FACTORS = {"table_exercise": copy.deepcopy(REFERENCE["configs"]["table_exercise"]) | {"cube_rho": 800.0}}
+
+
+def _golden_grade(report) -> dict:
+    """What the move must keep of a grade: the total, each item's verdict and score, and the lab check's line."""
+    return {"total": report.total, "max_total": report.max_total, "rubric": report.rubric_version,
+            "items": {i.id: [i.verdict, i.score] for i in report.items},
+            "config_findings": list(report.config_findings)}
+
+
+def _content_keys(specs) -> dict[str, str]:
+    """Each case's content key, as the service computes it at admission (grader.services.submissions.submit)."""
+    from grader.core.content_key import content_key, key_inputs
+
+    return {spec.name: content_key(key_inputs(spec.model_dump(mode="json", exclude_computed_fields=True),
+                                              backend=spec.backend, precision=spec.precision))
+            for spec in specs}
+
+
+def _golden_now(graded_runs) -> dict:
+    from rubric.check import OutputLocation, evaluate
+    from tests.rubric.test_variant_scoring import RUBRIC as VARIANT_RUBRIC, VARIANT, graded, variant_sheet
+
+    sheets = {"reference": (sheet_data(), "reference")}
+    sheets |= {f"misconception: {name}": (sheet_data(changes), "reference") for name, changes in MISCONCEPTIONS.items()}
+    sheets |= {key: (sheet_data(student=key, configs=configs), key) for key, configs in SHEETS.items() if configs}
+    sheets["two factors in the table exercise"] = (sheet_data(configs=TWO_FACTORS), "reference")
+    out = {}
+    for key, (data, runs) in sheets.items():
+        sheet = parse_sheet(data)
+        specs = cases_to_run(sheet)
+        results = {name: r for name, r in graded_runs[runs].items() if name in {s.name for s in specs}}
+        out[key] = _golden_grade(grade_sheet(sheet, results)) | {"content_keys": _content_keys(specs)}
+    report, runs = graded(variant_sheet(), VARIANT)
+    out[f"variant {VARIANT.id}"] = _golden_grade(report) | {
+        "content_keys": _content_keys(cases_to_run(parse_sheet(variant_sheet()), VARIANT_RUBRIC, VARIANT))}
+    check = evaluate({n: graded_runs["reference"][n] for n in ("N1", "N2", "N3", "N4", "friction-baseline",
+                                                                "friction-table-0.30")},
+                     outputs=OutputLocation(passed=True, evidence="test outputs under tmp"))
+    out["lab check"] = {"line": check.verdict_line(), "conditions": {c.id: c.passed for c in check.conditions}}
+    return out
+
+
+def test_l03_grades_lab_check_and_content_keys_are_the_ones_recorded_before_the_lesson_moved(graded_runs):
+    """Issue 45, item 2: recorded from the code before L03 moved behind the lesson interface (L03_GOLDEN_WRITE=1
+    writes tests/rubric/l03_golden.json from the code as it is); every later step must give the same grades, item
+    verdicts, lab check and content keys (reused measurements stay reusable). Scores are compared exactly: the
+    measurements are the same real runs on the same engine versions."""
+    import json
+    import os
+
+    now = json.loads(json.dumps(_golden_now(graded_runs)))
+    if os.environ.get("L03_GOLDEN_WRITE") == "1":
+        GOLDEN.write_text(json.dumps(now, indent=1, sort_keys=True) + "\n")
+    recorded = json.loads(GOLDEN.read_text())
+    assert set(now) == set(recorded)
+    for key in recorded:
+        assert now[key] == recorded[key], key
+    assert recorded["reference"]["total"] == recorded["reference"]["max_total"]
+    assert recorded["lab check"]["line"] == "L03 CHECK: PASSED"
