@@ -5,7 +5,7 @@ Commands are taken as module attributes so `grader.cli.grade` etc. stay the subm
 
 import click
 
-from . import assignment, case, check, course, grade, lti, roster, rubric, service
+from . import assignment, case, check, course, grade, lesson, lti, roster, rubric, service
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -13,7 +13,8 @@ def main() -> None:
     """Autograder for the Genesis course (lesson L03)."""
 
 
-for command in (assignment.assignment, case.case, check.check, course.course, grade.grade, lti.lti, roster.roster,
+for command in (assignment.assignment, case.case, check.check, course.course, grade.grade, lesson.lesson, lti.lti,
+                roster.roster,
                 rubric.rubric,
                 *service.COMMANDS):
     main.add_command(command)

@@ -15,8 +15,12 @@ def grader(*args, cwd=None):
 
 
 def test_check_passes_on_cpu_and_keeps_evidence_in_the_output_folder(tmp_path):
-    done = grader("check", "--backend", "cpu", "--mode", "warm", "--out", str(tmp_path / "check"))
+    """Through `grader lesson check L03` (issue 45, item 6), which validates the lesson's declaration and files, then
+    runs `grader check`'s own run_check with the declared lesson's check cases and lab check."""
+    done = grader("lesson", "check", "L03", "--backend", "cpu", "--mode", "warm", "--out", str(tmp_path / "check"))
     assert done.returncode == 0, done.stdout + done.stderr
+    assert "texts in en, zh: no problem" in done.stdout
+    assert "L03 check: 6 cases on backend=cpu, rendering=off, mode=warm" in done.stdout
     assert "L03 CHECK: PASSED" in done.stdout
     assert "[PASS] at fixed dt, the finer internal timestep reduces the penetration proxy" in done.stdout
     cases = tmp_path / "check" / "cases"

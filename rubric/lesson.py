@@ -1,0 +1,140 @@
+"""What a lesson is to the service: one declaration per lesson (`Lesson`), found by entry point.
+
+A course teaches many lessons, and the service grades any lesson that declares itself (issue 45, DESIGN.md "Lessons").
+A lesson's package exposes one `Lesson` under the entry-point group ENTRY_POINTS (pyproject.toml:
+`[project.entry-points."l03_grader.lessons"] L03 = "rubric.l03:LESSON"`), so a lesson can be its own installable
+distribution. The declaration says everything a lesson owns:
+
+  name, titles        "L03", and its title in every language the course teaches in (`languages`)
+  files               the folder of its reviewed files: rubric versions (NAME-vV.yaml), audit tolerances
+                      (NAME-audit-vV.yaml), variant spaces (NAME-lab-variants-vV.yaml) and the texts of each language
+                      but English (NAME.LANG.yaml); their governance is rubric.governance's, as for every lesson
+  case_kinds          {kind: its case spec model}: what a student's config may be
+  scenes              the module that builds each case kind's Genesis scene and records its samples: the only
+                      Genesis-importing code, imported by name inside the case process alone
+  cases               its baseline case table; check_cases the names its lab check runs
+  scoring_rules       {rule name: scoring function}: every rubric item's `check` must name one
+  grade_sheet, cases_to_run, evaluate_check, verdict_line
+                      how a sheet is graded on measured runs, which runs a sheet needs, the lab check on measured
+                      runs (`<NAME> CHECK: PASSED` and its conditions)
+
+Pure: this module imports nothing of the service; `lesson("L03")` imports the lesson's declaring module only.
+Step 2 of issue 45: L03 is declared here and `grader lesson check` reads the declaration; the service's other layers
+still call L03's modules directly, and move to the declaration in the next steps.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import importlib.util
+import re
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+ENTRY_POINTS = "l03_grader.lessons"
+NAME_PATTERN = r"^L[0-9]{2}$"
+# English is the language every text is written in; the others are translations beside the rubric (NAME.LANG.yaml).
+SOURCE_LANGUAGE = "en"
+
+
+@dataclass(frozen=True)
+class Lesson:
+    """One lesson's declaration (module docstring): its name and texts, its reviewed files, its cases, its scoring
+    and its lab check."""
+
+    name: str
+    titles: Mapping[str, str]
+    files: Path
+    case_kinds: Mapping[str, type]
+    scenes: str
+    cases: Mapping[str, Any]
+    check_cases: Sequence[str]
+    scoring_rules: Mapping[str, Callable]
+    grade_sheet: Callable
+    cases_to_run: Callable
+    evaluate_check: Callable
+    verdict_line: Callable[..., str]
+    languages: Sequence[str] = (SOURCE_LANGUAGE,)
+    # Rubric versions kept readable for the grades stored under them but never used to grade again: their items may
+    # name rules the lesson no longer has.
+    archived_versions: Sequence[str] = ()
+    origin: str = field(default="", compare=False)  # where the declaration was found (an entry point or a file)
+
+    def title(self, language: str) -> str:
+        """The lesson's title in `language`, else in English."""
+        return self.titles.get(language) or self.titles[SOURCE_LANGUAGE]
+
+    def rubric_files(self) -> dict[str, Path]:
+        """{version: file} of its rubric versions, oldest first."""
+        return _versioned(self.files, rf"^{re.escape(self.name)}-v([0-9.]+)\.yaml$")
+
+    def audit_files(self) -> dict[str, Path]:
+        return _versioned(self.files, rf"^{re.escape(self.name)}-audit-v([0-9.]+)\.yaml$")
+
+    def variant_files(self) -> dict[str, Path]:
+        return _versioned(self.files, rf"^{re.escape(self.name)}-lab-variants-v([0-9.]+)\.yaml$")
+
+    def text_file(self, language: str) -> Path:
+        """Where its texts in `language` (not English) live."""
+        return self.files / f"{self.name}.{language}.yaml"
+
+
+def _versioned(folder: Path, pattern: str) -> dict[str, Path]:
+    found = {m.group(1): p for p in folder.glob("*.yaml") if (m := re.match(pattern, p.name))}
+    return dict(sorted(found.items(), key=lambda kv: tuple(int(x) for x in kv[0].split("."))))
+
+
+class LessonNotFound(LookupError):
+    """No lesson of that name is installed, or a file declares none."""
+
+
+@functools.cache
+def _installed() -> dict[str, metadata.EntryPoint]:
+    return {entry.name: entry for entry in metadata.entry_points(group=ENTRY_POINTS)}
+
+
+def lesson_names() -> list[str]:
+    """The names of every installed lesson, sorted."""
+    return sorted(_installed())
+
+
+@functools.cache
+def lesson(name: str) -> Lesson:
+    """The installed lesson called `name` (its entry point's object, which must be a Lesson of that name)."""
+    entry = _installed().get(name)
+    if entry is None:
+        known = ", ".join(lesson_names()) or "none"
+        raise LessonNotFound(f"no lesson {name!r} is installed (entry points {ENTRY_POINTS}: {known})")
+    declared = entry.load()
+    return _checked(declared, f"entry point {entry.name} = {entry.value}", name)
+
+
+def load_lesson(path: Path) -> Lesson:
+    """The lesson a Python file declares as `LESSON` (a lesson author's package before it is installed: the file, or
+    a folder holding `lesson.py`)."""
+    path = path / "lesson.py" if path.is_dir() else path
+    if not path.is_file():
+        raise LessonNotFound(f"{path}: no such file (a lesson is declared by LESSON in a .py file, or in lesson.py of "
+                             "its folder)")
+    spec = importlib.util.spec_from_file_location(f"_lesson_{abs(hash(str(path.resolve())))}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    declared = getattr(module, "LESSON", None)
+    return _checked(declared, str(path), None)
+
+
+def _checked(declared, origin: str, name: str | None) -> Lesson:
+    if not isinstance(declared, Lesson):
+        raise LessonNotFound(f"{origin}: LESSON is {type(declared).__name__}, not a rubric.lesson.Lesson")
+    if name is not None and declared.name != name:
+        raise LessonNotFound(f"{origin}: declares lesson {declared.name!r}, not {name!r}")
+    if not re.match(NAME_PATTERN, declared.name):
+        raise LessonNotFound(f"{origin}: name {declared.name!r} must be L and two digits (L02, L03)")
+    return dataclasses.replace(declared, origin=origin)
+
+
+__all__ = ["ENTRY_POINTS", "Lesson", "LessonNotFound", "SOURCE_LANGUAGE", "lesson", "lesson_names", "load_lesson"]
