@@ -37,8 +37,12 @@ run: $(STAMP)
 # `make test TEST_WORKERS=0` runs it in this process alone; `make test PYTEST_ARGS='tests/rubric -k tumble'` a part.
 TEST_WORKERS ?= auto
 PYTEST_ARGS ?=
+# Each run also prints the test-process seconds per folder of tests/ (tools.suite_durations, from out/junit.xml), failed
+# or not, so that CI's log says where the suite's time went (issue 43).
 test: $(STAMP)
-	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder $(PYTEST_ARGS)
+	mkdir -p out
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder --junitxml=out/junit.xml $(PYTEST_ARGS); \
+		status=$$?; $(PY) -m tools.suite_durations out/junit.xml || true; exit $$status
 
 # The contributor's loop: the unit and service tests, without the integration modules (real Celery workers, the
 # compose stack, the browser walks) and without the tests marked slow (their own Genesis runs). `make test` stays the
