@@ -266,6 +266,29 @@ def test_a_late_submission_records_how_late(api):
     assert 2 * 3600 <= late < 2 * 3600 + 60
 
 
+def test_a_shifted_clock_dates_the_service_that_many_days_ahead(api, monkeypatch):
+    """settings.clock_shift_days (CLOCK_SHIFT_DAYS, a rehearsal of a term) moves the service's "now": an assignment
+    due a day from now by the calendar is already a day past due to a service living two days ahead, and the
+    submission is stored as made two days from now."""
+    from datetime import datetime
+
+    from grader.core import clock
+    from grader.core.settings import settings
+
+    monkeypatch.setattr(settings, "clock_shift_days", 2.0)
+    calendar = datetime.now(UTC).replace(microsecond=0)  # the system clock, which the shift never moves
+    aid = create(api, open_at=(calendar - timedelta(days=1)).isoformat(),
+                 due_at=(calendar + timedelta(days=1)).isoformat(),
+                 hard_close_at=(calendar + timedelta(days=3)).isoformat()).json()["id"]
+    made = submit(api, aid)
+    assert made.status_code == 202, made.text
+    row = made.json()
+    assert 86400 <= row["late_seconds"] < 86400 + 60, row["late_seconds"]
+    created = datetime.fromisoformat(row["created_at"].replace("Z", "+00:00"))
+    assert timedelta(days=2) <= created - calendar < timedelta(days=2, minutes=1), (created, calendar)
+    assert timedelta(days=2) <= clock.now() - calendar.replace(tzinfo=None) < timedelta(days=2, minutes=1)
+
+
 def test_an_extension_lets_one_student_submit_after_the_close(api):
     aid = create(api, open_at=at(-3), due_at=at(-2), hard_close_at=at(-1)).json()["id"]
     granted = api.client.post(f"/v1/assignments/{aid}/extensions", headers=api.as_("prof"),

@@ -185,3 +185,28 @@ def test_a_cross_site_override_or_review_request_is_refused_and_stores_nothing(a
     assert refused.status_code == 403
     assert api.client.get(f"/v1/submissions/{sid}/overrides", headers=api.as_("prof")).json() == []
     assert api.client.get(f"/v1/submissions/{sid}/review-requests", headers=api.as_("prof")).json() == []
+
+
+def test_the_review_request_quota_is_the_students_over_all_their_submissions(api, monkeypatch):
+    """The quota (settings.rate_limit_review_requests) counts a student's requests, not one submission's: spread over
+    two graded attempts, the request past it is refused with 429 and the rule, and nothing more is stored; another
+    student's requests are their own."""
+    from grader.core.settings import settings
+
+    monkeypatch.setattr(settings, "rate_limit_review_requests", "3/hour")
+    aid, first = graded(api)
+    second = submit(api, aid)
+    assert second.json()["status"] == "graded", second.text
+    second = second.json()["id"]
+    for sid, item in ((first, "C3"), (first, "C4"), (second, "C3")):
+        made = ask(api, sid, item_id=item)
+        assert made.status_code == 201, (sid, item, made.text)
+    refused = ask(api, second, item_id="C4")
+    assert refused.status_code == 429 and int(refused.headers["Retry-After"]) >= 1, refused.text
+    assert refused.json()["errors"] == [{"field": "review_requests",
+                                         "rule": "at most 3 per 1 hour review requests per student"}]
+    kept = api.client.get(f"/v1/submissions/{second}/review-requests", headers=api.as_("alice")).json()
+    assert [r["item_id"] for r in kept] == ["C3"]
+    bobs = submit(api, aid, who="bob")
+    assert bobs.json()["status"] == "graded", bobs.text
+    assert ask(api, bobs.json()["id"], who="bob").status_code == 201
