@@ -29,7 +29,7 @@ from babel.numbers import format_decimal, format_percent
 from babel.support import Translations
 
 from grader.core.timezones import local, zone
-from rubric.rubrics import LESSONS_DIR
+from rubric.rubrics import lesson_folder
 
 LOCALES = ("en", "zh")
 DEFAULT = "en"
@@ -259,8 +259,9 @@ def lesson_text(lesson: str, locale: str) -> dict[str, dict[str, str]]:
     """The translations file beside the lesson's rubric (`L03.zh.yaml`), keyed by the English text exactly as the
     rubric says it: a published version's content is never touched, and a changed question shows in English until
     its translation is added."""
-    path = LESSONS_DIR / f"{lesson}.{locale}.yaml"
-    if locale == DEFAULT or not path.is_file():
+    folder = lesson_folder(lesson)
+    path = folder / f"{lesson}.{locale}.yaml" if folder else None
+    if locale == DEFAULT or path is None or not path.is_file():
         return {}
     data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
     return {section: dict(entries or {}) for section, entries in data.items() if section != "lesson"}

@@ -72,7 +72,8 @@ class AuditTolerances(BaseModel):
 def audit_versions(lesson: str = "L03") -> list[str]:
     """Audit tolerance versions shipped for a lesson, oldest first (files named LESSON-audit-vVERSION.yaml)."""
     pattern = re.compile(rf"^{re.escape(lesson)}-audit-v([0-9.]+)\.yaml$")
-    found = [m.group(1) for p in rubrics.LESSONS_DIR.glob("*.yaml") if (m := pattern.match(p.name))]
+    folder = rubrics.lesson_folder(lesson)
+    found = [m.group(1) for p in folder.glob("*.yaml") if (m := pattern.match(p.name))] if folder else []
     return sorted((v for v in found if re.match(VERSION_PATTERN, v)), key=version_key)
 
 
@@ -80,11 +81,12 @@ def load_audit_tolerances(lesson: str = "L03", version: str | None = None) -> Au
     """A lesson's audit tolerances at `version`, or the latest; the file's own lesson/version must agree."""
     versions = audit_versions(lesson)
     if not versions:
-        raise LookupError(f"no audit tolerance files for lesson {lesson!r} in {rubrics.LESSONS_DIR}")
+        raise LookupError(f"no audit tolerance files for lesson {lesson!r} in "
+                          f"{rubrics.lesson_folder(lesson) or 'no installed lesson'}")
     version = version or versions[-1]
     if version not in versions:
         raise LookupError(f"lesson {lesson} has no audit tolerances version {version!r}; known: {', '.join(versions)}")
-    data = yaml.safe_load((rubrics.LESSONS_DIR / f"{lesson}-audit-v{version}.yaml").read_text())
+    data = yaml.safe_load((rubrics.lesson_folder(lesson) / f"{lesson}-audit-v{version}.yaml").read_text())
     loaded = AuditTolerances.model_validate_json(json.dumps(data, default=str))
     if (loaded.lesson, loaded.version) != (lesson, version):
         raise ValueError(f"{lesson}-audit-v{version}.yaml declares lesson {loaded.lesson} version {loaded.version}")

@@ -125,10 +125,24 @@ def version_key(version: str) -> tuple[int, ...]:
     return tuple(int(part) for part in version.split("."))
 
 
+def lesson_folder(lesson: str) -> Path | None:
+    """The folder of a lesson's reviewed files (rubric versions, audit tolerances, variant spaces, texts per
+    language), as its declaration says (rubric.lesson, found by entry point); None for a lesson not installed."""
+    from .lesson import LessonNotFound, lesson as declared  # here, not at the top: a declaration imports this module
+
+    try:
+        return declared(lesson).files
+    except LessonNotFound:
+        return None
+
+
 def rubric_versions(lesson: str = "L03") -> list[str]:
-    """Versions shipped for a lesson, oldest first (files named LESSON-vVERSION.yaml)."""
+    """Versions shipped for a lesson, oldest first (files named LESSON-vVERSION.yaml in its folder)."""
+    folder = lesson_folder(lesson)
+    if folder is None:
+        return []
     pattern = re.compile(rf"^{re.escape(lesson)}-v([0-9.]+)\.yaml$")
-    found = [m.group(1) for p in LESSONS_DIR.glob("*.yaml") if (m := pattern.match(p.name))]
+    found = [m.group(1) for p in folder.glob("*.yaml") if (m := pattern.match(p.name))]
     return sorted(found, key=version_key)
 
 
@@ -144,11 +158,11 @@ def _shipped(lesson: str, version: str | None) -> Rubric:
     changed; the file's own lesson/version must agree."""
     versions = rubric_versions(lesson)
     if not versions:
-        raise LookupError(f"no rubric files for lesson {lesson!r} in {LESSONS_DIR}")
+        raise LookupError(f"no rubric files for lesson {lesson!r} in {lesson_folder(lesson) or 'no installed lesson'}")
     version = version or versions[-1]
     if version not in versions:
         raise LookupError(f"lesson {lesson} has no rubric version {version!r}; known: {', '.join(versions)}")
-    rubric = _parsed((LESSONS_DIR / f"{lesson}-v{version}.yaml").read_text())
+    rubric = _parsed((lesson_folder(lesson) / f"{lesson}-v{version}.yaml").read_text())
     if (rubric.lesson, rubric.version) != (lesson, version):
         raise ValueError(f"{lesson}-v{version}.yaml declares lesson {rubric.lesson} version {rubric.version}")
     return rubric

@@ -184,7 +184,8 @@ def parse_variant_space(data: Mapping) -> VariantSpace:
 def variant_space_versions(lesson: str = "L03") -> list[str]:
     """Variant space versions shipped for a lesson, oldest first (files named LESSON-lab-variants-vVERSION.yaml)."""
     pattern = re.compile(rf"^{re.escape(lesson)}-lab-variants-v([0-9.]+)\.yaml$")
-    found = [m.group(1) for p in rubrics.LESSONS_DIR.glob("*.yaml") if (m := pattern.match(p.name))]
+    folder = rubrics.lesson_folder(lesson)
+    found = [m.group(1) for p in folder.glob("*.yaml") if (m := pattern.match(p.name))] if folder else []
     return sorted((v for v in found if re.match(VERSION_PATTERN, v)), key=version_key)
 
 
@@ -193,11 +194,12 @@ def load_variant_space(lesson: str = "L03", version: str | None = None) -> Varia
     and the rubric version it was reviewed for must exist."""
     versions = variant_space_versions(lesson)
     if not versions:
-        raise LookupError(f"no variant space files for lesson {lesson!r} in {rubrics.LESSONS_DIR}")
+        raise LookupError(f"no variant space files for lesson {lesson!r} in "
+                          f"{rubrics.lesson_folder(lesson) or 'no installed lesson'}")
     version = version or versions[-1]
     if version not in versions:
         raise LookupError(f"lesson {lesson} has no variant space version {version!r}; known: {', '.join(versions)}")
-    data = yaml.safe_load((rubrics.LESSONS_DIR / f"{lesson}-lab-variants-v{version}.yaml").read_text())
+    data = yaml.safe_load((rubrics.lesson_folder(lesson) / f"{lesson}-lab-variants-v{version}.yaml").read_text())
     space = parse_variant_space(data)
     if (space.lesson, space.version) != (lesson, version):
         raise ValueError(f"{lesson}-lab-variants-v{version}.yaml declares lesson {space.lesson} version {space.version}")

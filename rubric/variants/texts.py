@@ -99,8 +99,9 @@ def placeholders(template: str) -> set[str]:
 
 @functools.lru_cache(maxsize=4)
 def _translations(lesson: str, locale: Locale) -> dict[str, dict[str, str]]:
-    path = rubrics.LESSONS_DIR / f"{lesson}.{locale}.yaml"
-    if not path.is_file():
+    folder = rubrics.lesson_folder(lesson)
+    path = folder / f"{lesson}.{locale}.yaml" if folder else None
+    if path is None or not path.is_file():
         return {}
     data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
     return {section: dict(entries or {}) for section, entries in data.items() if section != "lesson"}

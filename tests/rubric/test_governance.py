@@ -60,7 +60,7 @@ def test_latest_means_the_highest_version_number_not_the_last_file_name(tmp_path
     for version in ("2", "10", "9"):
         data = current.model_dump(mode="json") | {"version": version}
         (tmp_path / f"L03-v{version}.yaml").write_text(yaml.safe_dump(data))
-    monkeypatch.setattr(rubrics, "LESSONS_DIR", tmp_path)
+    monkeypatch.setattr(rubrics, "lesson_folder", lambda lesson: tmp_path)
     assert rubric_versions("L03") == ["2", "9", "10"]
     assert load_rubric("L03").version == "10"  # as text, "9" > "2" > "10"
 

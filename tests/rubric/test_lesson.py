@@ -28,3 +28,27 @@ def test_l03_is_installed_by_entry_point_and_declares_what_the_service_grades_wi
 def test_an_unknown_lesson_names_the_installed_ones():
     with pytest.raises(LessonNotFound, match=r"no lesson 'L02' is installed \(entry points l03_grader.lessons: .*L03"):
         lesson("L02")
+
+
+def test_a_lessons_reviewed_files_are_read_from_the_folder_its_declaration_names(monkeypatch, tmp_path):
+    """rubric.rubrics.lesson_folder: the rubric versions, audit tolerances, variant spaces and texts of a lesson are
+    where its declaration says (an installed lesson's own package), not in a folder the service names."""
+    import dataclasses
+    import shutil
+
+    from rubric import lesson as registry
+    from rubric import load_rubric
+    from rubric.discrepancy import audit_versions
+    from rubric.rubrics import lesson_folder
+    from rubric.variants import variant_space_versions
+
+    assert lesson_folder("L03") == lesson("L03").files and lesson_folder("L99") is None
+    assert rubric_versions("L99") == [] and audit_versions("L99") == []
+    moved = tmp_path / "l03-files"
+    shutil.copytree(LESSONS_DIR, moved)
+    (moved / "L03-v1.yaml").unlink()
+    (moved / "L03-audit-v2.yaml").write_text((moved / "L03-audit-v1.yaml").read_text().replace('version: "1"',
+                                                                                             'version: "2"'))
+    monkeypatch.setattr(registry, "lesson", lambda name: dataclasses.replace(lesson(name), files=moved))
+    assert rubric_versions("L03") == ["2"] and audit_versions("L03") == ["1", "2"]
+    assert variant_space_versions("L03") == ["1"] and load_rubric("L03").version == "2"

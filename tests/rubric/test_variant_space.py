@@ -98,7 +98,7 @@ def test_a_variant_file_naming_an_unpublished_rubric_is_refused(tmp_path, monkey
         (tmp_path / path.name).write_text(path.read_text())
     data = load_variant_space("L03").model_dump(mode="json") | {"grading_rubric": "7"}
     (tmp_path / "L03-lab-variants-v1.yaml").write_text(yaml.safe_dump(data))
-    monkeypatch.setattr(rubrics, "LESSONS_DIR", tmp_path)
+    monkeypatch.setattr(rubrics, "lesson_folder", lambda lesson: tmp_path)
     with pytest.raises(ValueError, match="grading_rubric '7' is not a published rubric version of L03"):
         load_variant_space("L03")
     with pytest.raises(LookupError, match="no variant space version '2'"):
