@@ -89,6 +89,14 @@ def _rerun_after(stack, run_id: int, since: datetime) -> float:
     return (datetime.fromisoformat(row[0]) - since).total_seconds()
 
 
+def _extension_running(stack, submission: int, hostnames) -> tuple[int, str, int] | None:
+    """(case run, worker, tries) of the submission's own extension run while a worker of `hostnames` runs it."""
+    rows = stack.sql(f"SELECT id, worker, tries FROM case_runs WHERE submission_id = {submission} "
+                     f"AND name = '{EXTENSION_RUN}' AND status = 'running' AND worker IS NOT NULL")
+    return next(((run, worker, int(tries)) for run, worker, tries in rows if any(h in worker for h in hostnames)),
+                None)
+
+
 def _wait(predicate, what: str, limit_s: float = WAIT_LIMIT_S, poll_s: float = 1.0):
     deadline = time.monotonic() + limit_s
     while not (value := predicate()):
@@ -343,13 +351,8 @@ def test_the_compose_stack_grades_through_tls_scales_recovers_and_keeps_its_data
                                          "substeps": LONG_CASE_SUBSTEPS + attempt}
         forced = _submit(stack, "prof", sheet, force_rerun=True)
 
-        def running(forced=forced):
-            rows = stack.sql(f"SELECT id, worker, tries FROM case_runs WHERE submission_id = {forced} "
-                             f"AND name = '{EXTENSION_RUN}' AND status = 'running' AND worker IS NOT NULL")
-            return next(((run, worker, int(tries)) for run, worker, tries in rows
-                         if any(h in worker for h in hostnames)), None)
-        victim, holder, tries = _wait(running, f"the forced sheet's {long_case} in the middle of its case",
-                                      poll_s=0.2)
+        victim, holder, tries = _wait(lambda: _extension_running(stack, forced, hostnames),
+                                      f"the forced sheet's {long_case} in the middle of its case", poll_s=0.2)
         container = next(name for host, name in hostnames.items() if host in holder)
         pid, restarts = mains[container]
         # SIGKILL of the container's main process from the host, as the kernel's OOM killer would: the container
@@ -385,13 +388,8 @@ def test_the_compose_stack_grades_through_tls_scales_recovers_and_keeps_its_data
                                          "substeps": LONG_CASE_SUBSTEPS + KILL_ATTEMPTS + attempt}
         forced = _submit(stack, "prof", sheet, force_rerun=True)
 
-        def running(forced=forced):
-            rows = stack.sql(f"SELECT id, worker, tries FROM case_runs WHERE submission_id = {forced} "
-                             f"AND name = '{EXTENSION_RUN}' AND status = 'running' AND worker IS NOT NULL")
-            return next(((run, worker, int(tries)) for run, worker, tries in rows
-                         if any(h in worker for h in hostnames)), None)
-        victim, holder, tries = _wait(running, f"the forced sheet's N5-gone-{attempt} in the middle of its case",
-                                      poll_s=0.2)
+        victim, holder, tries = _wait(lambda: _extension_running(stack, forced, hostnames),
+                                      f"the forced sheet's N5-gone-{attempt} in the middle of its case", poll_s=0.2)
         container = next(name for host, name in hostnames.items() if host in holder)
         removed_at = datetime.now(timezone.utc).replace(tzinfo=None)
         stack.podman("rm", "-f", "-t", "0", container)
