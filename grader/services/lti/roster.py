@@ -73,7 +73,8 @@ class _Tally:
         synced = len(self.added) + len(self.updated) + self.unchanged
         if not synced:
             return "nothing was stored"
-        return (f"the {synced} learner{'s' if synced != 1 else ''} of the pages before were synced "
+        return (f"{'the 1 learner' if synced == 1 else f'the {synced} learners'} of the pages before "
+                f"{'was' if synced == 1 else 'were'} synced "
                 f"({len(self.added)} added, {len(self.updated)} updated), nobody was reported as dropped")
 
 
