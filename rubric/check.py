@@ -14,7 +14,7 @@ from collections.abc import Iterable
 import numpy as np
 from pydantic import BaseModel
 
-from .cases import CONTACT_CASES, get_case
+from .cases import CONTACT_CASES
 from .metrics import Alignment, ContactMetrics, LaneMetrics, align
 from .relations import cases_agree, lanes_by_pair, proxy_change, stop_change
 from .results import FRAME_FIELDS, CaseResult, discretization_problems
@@ -411,10 +411,3 @@ def _table_change(lanes, ok, tol: "_Tolerances") -> Condition:
                          f"{tol.show('high_lane_unchanged')})")
         passed &= good
     return Condition(id="table_friction_change", title=title, passed=passed, evidence="\n".join(lines))
-
-
-def check_cases(*, backend: str = "cpu", render: bool = False) -> list:
-    """The specs `grader check` runs: N1-N4 and both friction runs, on the chosen backend and render mode."""
-    from .cases import CHECK_CASES, with_backend
-
-    return [with_backend(get_case(name), backend=backend, render=render) for name in CHECK_CASES]

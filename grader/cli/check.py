@@ -12,8 +12,9 @@ import click
 from grader.core.states import Backend, ExecutionMode, values
 
 from rubric import CaseResult, with_backend
-from rubric.check import OutputLocation, check_cases, evaluate
+from rubric.check import OutputLocation
 from rubric.lesson import Lesson
+from rubric.lesson import lesson as installed_lesson
 
 from grader.check_report import write_check_report
 from worker import run_cases
@@ -46,16 +47,12 @@ def run_check(
     *, backend: str, render: bool, mode: str, jobs: int, out_dir: Path, overrides: list[Path], echo=click.echo,
     lesson: Lesson | None = None,
 ):
-    """Run the check's cases, write figures and reports into out_dir, return (CheckReport, results): L03's, or the
-    declared `lesson`'s (its check cases and its lab check: `grader lesson check`)."""
+    """Run a lesson's check cases (L03's unless `lesson` is given: `grader lesson check`), write figures and reports
+    into out_dir, return (CheckReport, results)."""
     from worker.figures import lab_figures  # lazy: matplotlib (~0.7 s) only for `grader check`, not `grader --help`
 
-    if lesson is None:
-        specs = {spec.name: spec for spec in check_cases(backend=backend, render=render)}
-        evaluate_check, name = evaluate, "L03"
-    else:
-        specs = {name: with_backend(lesson.cases[name], backend=backend, render=render) for name in lesson.check_cases}
-        evaluate_check, name = lesson.evaluate_check, lesson.name
+    lesson = lesson or installed_lesson("L03")
+    specs = {name: with_backend(lesson.cases[name], backend=backend, render=render) for name in lesson.check_cases}
     for path in overrides:
         spec = load_spec_file(path)
         if spec.name not in specs:
@@ -63,7 +60,7 @@ def run_check(
         specs[spec.name] = spec
         echo(f"using {path} for case {spec.name}")
     out_dir.mkdir(parents=True, exist_ok=True)
-    echo(f"{name} check: {len(specs)} cases on backend={backend}, rendering={'on' if render else 'off'}, mode={mode}")
+    echo(f"{lesson.name} check: {len(specs)} cases on backend={backend}, rendering={'on' if render else 'off'}, mode={mode}")
     echo("(the first Genesis run on a fresh machine compiles kernels for ~100 s)")
     started, count = time.perf_counter(), [0]
 
@@ -75,7 +72,7 @@ def run_check(
     results = run_cases(specs.values(), out_dir / "cases", mode=mode, jobs=jobs, progress=progress)
     echo(f"ran {len(results)} cases in {time.perf_counter() - started:.1f} s")
     figures = lab_figures(results, out_dir / "figures")
-    report = evaluate_check(results, outputs=output_location(out_dir))
+    report = lesson.evaluate_check(results, outputs=output_location(out_dir))
     (out_dir / "check.json").write_text(report.model_dump_json(indent=2))
     (out_dir / "check.txt").write_text(report.render_text() + "\n")
     html = write_check_report(out_dir, verdict=report.passed, conditions=report.conditions, results=results,

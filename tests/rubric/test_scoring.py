@@ -405,7 +405,7 @@ def _golden_now(graded_runs) -> dict:
         specs = cases_to_run(sheet)
         results = {name: r for name, r in graded_runs[runs].items() if name in {s.name for s in specs}}
         out[key] = _golden_grade(grade_sheet(sheet, results)) | {"content_keys": _content_keys(specs)}
-    report, runs = graded(variant_sheet(), VARIANT)
+    report, _ = graded(variant_sheet(), VARIANT)
     out[f"variant {VARIANT.id}"] = _golden_grade(report) | {
         "content_keys": _content_keys(cases_to_run(parse_sheet(variant_sheet()), VARIANT_RUBRIC, VARIANT))}
     check = evaluate({n: graded_runs["reference"][n] for n in ("N1", "N2", "N3", "N4", "friction-baseline",

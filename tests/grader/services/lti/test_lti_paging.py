@@ -26,6 +26,17 @@ RESULT_SCOPE = "https://purl.imsglobal.org/spec/lti-ags/scope/result.readonly"
 CLIENT_ID = "paging-client"
 
 
+
+def send_json(handler: BaseHTTPRequestHandler, code: int, data: bytes, link: str | None = None) -> None:
+    """A fake platform's JSON answer, with its `Link` header (the next page) where there is one."""
+    handler.send_response(code)
+    handler.send_header("Content-Type", "application/json")
+    handler.send_header("Content-Length", str(len(data)))
+    if link:
+        handler.send_header("Link", link)
+    handler.end_headers()
+    handler.wfile.write(data)
+
 class PagingLms:
     """The platform's services: /token (checks the tool's signed client assertion against the tool's JWKS),
     /memberships and /lineitems in two pages each, and each line item's /scores. `roster` and `items` are the second
@@ -45,14 +56,7 @@ class PagingLms:
 
         class Handler(BaseHTTPRequestHandler):
             def _send(self, code: int, body, link: str | None = None):
-                data = json.dumps(body).encode()
-                self.send_response(code)
-                self.send_header("Content-Type", "application/json")
-                self.send_header("Content-Length", str(len(data)))
-                if link:
-                    self.send_header("Link", link)
-                self.end_headers()
-                self.wfile.write(data)
+                send_json(self, code, json.dumps(body).encode(), link)
 
             def _page(self, first: list, rest: list, path: str):
                 """Page 1 without a cursor, page 2 with exactly CURSOR; anything else is a bad request."""

@@ -26,6 +26,7 @@ from sqlalchemy import event, func, select, text
 from sqlalchemy.engine import Engine
 
 from tests.grader.services.lti.test_lti import LEARNER, _session
+from tests.grader.services.lti.test_lti_paging import send_json
 
 MEMBERS, PER_PAGE = 20_000, 2_500
 # What the sync may add to the process's traced memory at its peak, the answer's 20,000 names included: one page
@@ -69,13 +70,7 @@ class RosterLms:
 
         class Handler(BaseHTTPRequestHandler):
             def _send(self, code: int, data: bytes, link: str | None = None):
-                self.send_response(code)
-                self.send_header("Content-Type", "application/json")
-                self.send_header("Content-Length", str(len(data)))
-                if link:
-                    self.send_header("Link", link)
-                self.end_headers()
-                self.wfile.write(data)
+                send_json(self, code, data, link)
 
             def do_GET(self):
                 if self.headers.get("Authorization") != "Bearer roster-token":
