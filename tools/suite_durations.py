@@ -35,6 +35,16 @@ def per_folder(path: str) -> dict[str, dict[str, float]]:
     return totals
 
 
+SLOWEST = 15  # the tests listed after the folders: where a minute of the suite can be won
+
+
+def slowest(path: str, count: int = SLOWEST) -> list[tuple[float, str]]:
+    """The `count` slowest tests of the run: (seconds, classname::name), slowest first."""
+    cases = [(float(case.get("time") or 0), f"{case.get('classname')}::{case.get('name')}")
+             for case in ET.parse(path).getroot().iter("testcase")]
+    return sorted(cases, reverse=True)[:count]
+
+
 def main(argv: list[str]) -> int:
     if len(argv) != 1:
         print(__doc__.strip(), file=sys.stderr)
@@ -46,6 +56,9 @@ def main(argv: list[str]) -> int:
         print(f"{folder:<20} {int(row['tests']):>6} {row['seconds']:>9.1f} {row['seconds'] / 60:>8.1f}  {bad}")
     seconds = sum(row["seconds"] for row in totals.values())
     print(f"{'all':<20} {int(sum(r['tests'] for r in totals.values())):>6} {seconds:>9.1f} {seconds / 60:>8.1f}")
+    print(f"\nthe {SLOWEST} slowest tests (seconds, setup to teardown):")
+    for took, name in slowest(argv[0]):
+        print(f"{took:>9.1f}  {name}")
     return 0
 
 

@@ -1,4 +1,4 @@
-"""tools.suite_durations adds up a JUnit XML run per folder of tests/."""
+"""tools.suite_durations adds up a JUnit XML run per folder of tests/ and names the slowest tests."""
 
 from __future__ import annotations
 
@@ -25,4 +25,7 @@ def test_seconds_and_counts_per_folder(tmp_path, capsys):
     assert main([str(path)]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[1].split()[:3] == ["tests/integration", "1", "10.0"]  # slowest first
-    assert lines[-1].split()[:3] == ["all", "5", "17.2"]
+    totals_end = lines.index(next(line for line in lines if line.startswith("all")))
+    assert lines[totals_end].split()[:3] == ["all", "5", "17.2"]
+    assert [line.split() for line in lines[totals_end + 3:totals_end + 5]] == [  # then the slowest tests, slowest first
+        ["10.0", "tests.integration.test_audit::test_c"], ["3.0", "tests.worker.test_figures::test_e"]]

@@ -15,8 +15,11 @@ from tests.factories import reference_sheet
 
 
 @pytest.fixture
-def a_worker(api):
-    """A worker's record, as worker.warm_gate writes it; dropped after the test."""
+def a_worker(api, tmp_path, monkeypatch):
+    """A worker's record, as worker.warm_gate writes it, in a broker store of this test's own: a worker another test
+    of this process started (or killed) within the last RECORD_TTL_S would otherwise count here too."""
+    monkeypatch.setattr(warmth.settings, "data_dir", tmp_path / "data")
+    monkeypatch.setattr(warmth.settings, "broker_url", "filesystem://")
     name = f"cpu-grade-test-{time.monotonic_ns()}@host"
     yield lambda warm, consuming, queues=("cpu", "grade"): warmth.record(warmth.WorkerWarmth(
         name=name, queues=tuple(queues), slots=2, warm=warm, started_at=time.time() - 30,
