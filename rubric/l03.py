@@ -4,10 +4,25 @@ them into the lesson's own package step by step, tests/rubric/l03_golden.json gu
 
 from __future__ import annotations
 
+import functools
+
 from . import cases, check, scoring
 from .lesson import Lesson
-from .rubrics import LESSONS_DIR
+from .rubrics import LESSONS_DIR, load_rubric
 from .specs import ContactCase, FrictionCase
+
+
+
+@functools.lru_cache(maxsize=1)
+def _latest_rubric():
+    return load_rubric("L03")
+
+
+def runs_read(item_id: str, runs) -> list[str]:
+    """The runs of `runs` whose measurements could tell L03 item `item_id`'s answer (rubric.scoring.runs_read), by
+    the latest rubric version: an item's rule and kind are the same in every version still graded."""
+    return scoring.runs_read(_latest_rubric(), item_id, runs)
+
 
 LESSON = Lesson(
     name="L03",
@@ -24,5 +39,6 @@ LESSON = Lesson(
     cases_to_run=scoring.cases_to_run,
     evaluate_check=check.evaluate,
     verdict_line=check.verdict_line,
+    runs_read=runs_read,
     archived_versions=("1",),
 )

@@ -17,6 +17,7 @@ distribution. The declaration says everything a lesson owns:
   grade_sheet, cases_to_run, evaluate_check, verdict_line
                       how a sheet is graded on measured runs, which runs a sheet needs, the lab check on measured
                       runs (`<NAME> CHECK: PASSED` and its conditions)
+  runs_read           which of a submission's runs could tell an item's answer (withheld with the item)
 
 Pure: this module imports nothing of the service; `lesson("L03")` imports the lesson's declaring module only.
 Step 2 of issue 45: L03 is declared here and `grader lesson check` reads the declaration; the service's other layers
@@ -58,6 +59,9 @@ class Lesson:
     cases_to_run: Callable
     evaluate_check: Callable
     verdict_line: Callable[..., str]
+    # (item id, a submission's run names) -> the runs whose measurements could tell that item's answer: what is
+    # withheld with the item, in every submission of the student (grader.services.submissions.visibility)
+    runs_read: Callable[[str, Sequence[str]], list[str]]
     languages: Sequence[str] = (SOURCE_LANGUAGE,)
     # Rubric versions kept readable for the grades stored under them but never used to grade again: their items may
     # name rules the lesson no longer has.

@@ -5,7 +5,9 @@ Why a validator and not a time: pages poll (the report page refreshes, the progr
 rebuilt the whole report. A complete report changes only when one of its inputs does, and each input is named here:
 the current grade's id (a regrade or an override stores a new grade), its completion, the submission's state and
 runs, the reader (user id, role and name: never one user's answer to another), which items are withheld from that
-reader and why (a release or a due date passing changes it, so a 304 can never hide a newly shown item), the review
+reader and why, and which items of the lesson are withheld from the submission's student in any assignment (their
+runs are withheld here: a release or a due date passing changes either, so a 304 can never hide a newly shown item
+or run), the review
 requests and their answers, the attempt's standing, the course's name and time zone, and for the page its language
 and address.
 
@@ -57,13 +59,14 @@ def report_state(session: Session, submission: Submission, user: User, view: Gra
             str(submission.updated_at), submission.assignment_id,
             [tuple(map(str, r)) for r in runs],
             view.stored.id, str(view.stored.completed_at), str(view.stored.superseded_at),
-            sorted(view.hidden.items()), [(r.id, str(r.answered_at), r.override_id) for r in reviews]]
+            sorted(view.hidden.items()), sorted(view.lesson_hidden.items()),
+            [(r.id, str(r.answered_at), r.override_id) for r in reviews]]
 
 
 def shown_until(session: Session, submission: Submission, user: User, view: GradeView) -> datetime | None:
     """The next instant at which time alone shows `user` an item withheld now (a due date passing), or None: the
     validator store must not confirm this answer from that instant on."""
-    if not view.hidden:
+    if not view.hidden and not view.lesson_hidden:
         return None
     return next_shown_at(session=session, submission=submission, user=user, now=utcnow())
 

@@ -8,6 +8,7 @@ from . import checkpoints, hands_on, part_a, part_b  # noqa: F401  (each module 
 from .scorer import (
     SCORING_RULES,
     LESSON_RUNS,
+    RULE_READS,
     SHEET_CASE_PREFIX,
     ArchivedRubric,
     GradeReport,
@@ -17,7 +18,8 @@ from .scorer import (
     cases_to_run,
     lesson_run_specs,
     grade_sheet,
+    runs_read,
 )
 
 __all__ = ["SCORING_RULES", "LESSON_RUNS", "SHEET_CASE_PREFIX", "ArchivedRubric", "GradeReport", "ItemGrade", "Verdict", "case_name",
-           "cases_to_run", "lesson_run_specs", "grade_sheet"]
+           "cases_to_run", "lesson_run_specs", "grade_sheet", "RULE_READS", "runs_read"]

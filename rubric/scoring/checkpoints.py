@@ -28,12 +28,12 @@ def timing_outcome(ctx: Context, role: str, a) -> Outcome:
                    ctx.backends(role))
 
 
-@scoring_rule("timing_n4")
+@scoring_rule("timing_n4", reads=("N4",))
 def timing_n4(ctx: Context, item: Item, a) -> Outcome:
     return timing_outcome(ctx, "N4", a)
 
 
-@scoring_rule("equal_steps_invalid")
+@scoring_rule("equal_steps_invalid", reads=())
 def equal_steps_invalid(ctx: Context, item: Item, a) -> Outcome:
     n1, n3 = ctx.cases["N1"], ctx.cases["N3"]
     covered = n1.n_steps * n3.dt
@@ -42,7 +42,7 @@ def equal_steps_invalid(ctx: Context, item: Item, a) -> Outcome:
                    {"steps": n1.n_steps, "duration_at_dt_0.01_s": n1.n_steps * n1.dt, "duration_at_dt_0.02_s": covered})
 
 
-@scoring_rule("shared_times")
+@scoring_rule("shared_times", reads=("N1", "N4"))
 def shared_times(ctx: Context, item: Item, a) -> Outcome:
     measured, evidence, backends = "", {}, {}
     r1, r4 = ctx.maybe(ctx.result, "N1"), ctx.maybe(ctx.result, "N4")
@@ -55,7 +55,7 @@ def shared_times(ctx: Context, item: Item, a) -> Outcome:
                    measured, evidence, backends)
 
 
-@scoring_rule("zero_contact")
+@scoring_rule("zero_contact", reads=("N1", "N2", "N3", "N4"))
 def zero_contact(ctx: Context, item: Item, a) -> Outcome:
     evidence, backends = {}, {}
     for role in ("N1", "N2", "N3", "N4"):
@@ -74,7 +74,7 @@ def zero_contact(ctx: Context, item: Item, a) -> Outcome:
                    measured, evidence, backends)
 
 
-@scoring_rule("pair_value_low")
+@scoring_rule("pair_value_low", reads=(BASELINE,))
 def pair_value_low(ctx: Context, item: Item, a) -> Outcome:
     lanes = ctx.friction(BASELINE).lanes
     # The question's pair (the lesson's table 0.50 with the cube of friction 0.10, or the student's variant's table
@@ -95,7 +95,7 @@ def pair_value_low(ctx: Context, item: Item, a) -> Outcome:
                    {"pair_friction": lane.pair_friction}, ctx.backends(BASELINE))
 
 
-@scoring_rule("pair_rule")
+@scoring_rule("pair_rule", reads=(BASELINE, COLOR_SWAP, "table_exercise"))
 def pair_rule(ctx: Context, item: Item, a) -> Outcome:
     """The student's rule must reproduce every pair value the engine used in every measured friction run."""
     tol, rule = ctx.tol("pair_friction_abs"), _RULES[a.pair_rule]
@@ -115,7 +115,7 @@ def pair_rule(ctx: Context, item: Item, a) -> Outcome:
                    "; ".join(rows), {}, ctx.backends(*roles))
 
 
-@scoring_rule("color_swap")
+@scoring_rule("color_swap", reads=(BASELINE, COLOR_SWAP))
 def color_swap(ctx: Context, item: Item, a) -> Outcome:
     effect, evidence, backends = measured_color_effect(ctx)
     if not effect.affects_results:
@@ -127,7 +127,7 @@ def color_swap(ctx: Context, item: Item, a) -> Outcome:
                    f"{BASELINE} re-run with the lane colours swapped: {effect.describe()}", evidence, backends)
 
 
-@scoring_rule("one_sample_stop")
+@scoring_rule("one_sample_stop", reads=(BASELINE,))
 def one_sample_stop(ctx: Context, item: Item, a) -> Outcome:
     parts, evidence, backends = [], {}, {}
     r = ctx.maybe(ctx.result, BASELINE)

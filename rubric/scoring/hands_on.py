@@ -8,11 +8,11 @@ from ..metrics import ContactMetrics
 from ..relations import direction, proxy_change
 from ..rubrics import Item
 from .checkpoints import timing_outcome
-from .scorer import Context, NotMeasured, Outcome, credit, relation_verdict, scoring_rule
+from .scorer import EVERY_RUN, Context, NotMeasured, Outcome, credit, relation_verdict, scoring_rule
 from .part_b import BASELINE, describe_changes, engine_pairs, lane_changes, with_disagreements
 
 
-@scoring_rule("exercise_pair_values")
+@scoring_rule("exercise_pair_values", reads=(BASELINE, "table_exercise"))
 def exercise_pair_values(ctx: Context, item: Item, a) -> Outcome:
     tol = ctx.tol("pair_friction_abs")
     want = {"baseline": engine_pairs(ctx, BASELINE), "modified": engine_pairs(ctx, "table_exercise")}
@@ -25,7 +25,7 @@ def exercise_pair_values(ctx: Context, item: Item, a) -> Outcome:
                    ctx.backends(BASELINE, "table_exercise"))
 
 
-@scoring_rule("low_lane_direction")
+@scoring_rule("low_lane_direction", reads=(BASELINE, "table_exercise"))
 def low_lane_direction(ctx: Context, item: Item, a) -> Outcome:
     deltas, evidence, backends = lane_changes(ctx)
     d = deltas["low"]
@@ -34,7 +34,7 @@ def low_lane_direction(ctx: Context, item: Item, a) -> Outcome:
                    describe_changes(deltas, evidence), evidence, backends)
 
 
-@scoring_rule("high_lane_direction")
+@scoring_rule("high_lane_direction", reads=(BASELINE, "table_exercise"))
 def high_lane_direction(ctx: Context, item: Item, a) -> Outcome:
     deltas, evidence, backends = lane_changes(ctx)
     d = deltas["high"]
@@ -46,7 +46,7 @@ def high_lane_direction(ctx: Context, item: Item, a) -> Outcome:
     return Outcome(credit(a.high == measured), measured, describe_changes(deltas, evidence), evidence, backends)
 
 
-@scoring_rule("reported_stops")
+@scoring_rule("reported_stops", reads=(BASELINE, "table_exercise"))
 def reported_stops(ctx: Context, item: Item, a) -> Outcome:
     tol = ctx.tol("reported_stop_distance")
     ok, parts, evidence = True, [], {}
@@ -66,14 +66,14 @@ def reported_stops(ctx: Context, item: Item, a) -> Outcome:
                    ctx.backends(BASELINE, "table_exercise"))
 
 
-@scoring_rule("exercise_one_factor")
+@scoring_rule("exercise_one_factor", reads=())
 def exercise_one_factor(ctx: Context, item: Item, a) -> Outcome:
     """Decided by the submitted config itself: the student's claim must match the field-by-field comparison."""
     finding = ctx.findings["table_exercise"]
     return Outcome(credit(a.only_table_friction_changed is finding.ok), str(finding.ok).lower(), finding.describe())
 
 
-@scoring_rule("engine_version")
+@scoring_rule("engine_version", reads=EVERY_RUN)
 def engine_version(ctx: Context, item: Item, a) -> Outcome:
     """The version the student names must be the one recorded in the provenance of this submission's own runs."""
     recorded = {r.provenance.versions.get("genesis", "unknown") for r in ctx.results.values()
@@ -89,7 +89,7 @@ def engine_version(ctx: Context, item: Item, a) -> Outcome:
                    + ", ".join(sorted(recorded)))
 
 
-@scoring_rule("timing_extension")
+@scoring_rule("timing_extension", reads=("extension", "N1"))
 def timing_extension(ctx: Context, item: Item, a) -> Outcome:
     out = timing_outcome(ctx, "extension", a)
     n1 = ctx.maybe(ctx.result, "N1")
@@ -131,7 +131,7 @@ def diagnostic_changes(ctx: Context, before: ContactMetrics, after: ContactMetri
     }
 
 
-@scoring_rule("may_improve")
+@scoring_rule("may_improve", reads=("N1", "extension"))
 def may_improve(ctx: Context, item: Item, a) -> Outcome:
     """Credit only for improvements the student's extension run measured against N1, each under its tolerance."""
     before, after = ctx.contact("N1"), ctx.contact("extension")
@@ -148,7 +148,7 @@ def may_improve(ctx: Context, item: Item, a) -> Outcome:
                    ctx.backends("N1", "extension"))
 
 
-@scoring_rule("not_guaranteed")
+@scoring_rule("not_guaranteed", reads=("N1", "N2", "N3", "N4", "extension"))
 def not_guaranteed(ctx: Context, item: Item, a) -> Outcome:
     tol = ctx.tol("proxy_resolution")
     worse, evidence, backends = [], {}, {}

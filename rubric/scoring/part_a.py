@@ -10,7 +10,7 @@ from .scorer import Context, NotMeasured, Outcome, credit, relation_verdict, sco
 CONTACT_ROLES = ("N1", "N2", "N3", "N4")
 
 
-@scoring_rule("sample_counts")
+@scoring_rule("sample_counts", reads=CONTACT_ROLES)
 def sample_counts(ctx: Context, item: Item, a) -> Outcome:
     """The question names the finer and the coarser dt's sample counts (150 and 75 in the lesson, the variant's own
     otherwise); the answer's `samples_150` lists the cases with the first count, `samples_75` those with the second."""
@@ -24,7 +24,7 @@ def sample_counts(ctx: Context, item: Item, a) -> Outcome:
                    {f"{role}_samples": n for role, n in counts.items()}, ctx.backends(*CONTACT_ROLES))
 
 
-@scoring_rule("proxy_direction")
+@scoring_rule("proxy_direction", reads=CONTACT_ROLES)
 def proxy_direction(ctx: Context, item: Item, a) -> Outcome:
     tol = ctx.tol("proxy_resolution")
     changes = [proxy_change(ctx.contact(coarse), ctx.contact(fine), tol) for coarse, fine in (("N1", "N2"), ("N3", "N4"))]
@@ -38,7 +38,7 @@ def proxy_direction(ctx: Context, item: Item, a) -> Outcome:
                    "; ".join(c.describe() for c in changes), evidence, ctx.backends(*CONTACT_ROLES))
 
 
-@scoring_rule("n1_n4_agree")
+@scoring_rule("n1_n4_agree", reads=("N1", "N4"))
 def n1_n4_agree(ctx: Context, item: Item, a) -> Outcome:
     r1, r4 = ctx.result("N1"), ctx.result("N4")
     al = align("N1", r1.arrays, "N4", r4.arrays)
@@ -53,7 +53,7 @@ def n1_n4_agree(ctx: Context, item: Item, a) -> Outcome:
                    ctx.backends("N1", "N4"))
 
 
-@scoring_rule("array_lengths")
+@scoring_rule("array_lengths", reads=("N1", "N4"))
 def array_lengths(ctx: Context, item: Item, a) -> Outcome:
     r1, r4 = ctx.result("N1"), ctx.result("N4")
     n1, n4 = len(r1.arrays["t"]), len(r4.arrays["t"])
@@ -65,7 +65,7 @@ def array_lengths(ctx: Context, item: Item, a) -> Outcome:
                    ctx.backends("N1", "N4"))
 
 
-@scoring_rule("one_number")
+@scoring_rule("one_number", reads=("N1", "N2"))
 def one_number(ctx: Context, item: Item, a) -> Outcome:
     m1, m2 = ctx.maybe(ctx.contact, "N1"), ctx.maybe(ctx.contact, "N2")
     measured, evidence, backends = "no measured example available", {}, {}

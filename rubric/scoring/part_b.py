@@ -40,7 +40,7 @@ def with_disagreements(text: str, ctx: Context, *roles: str) -> str:
                    "max rule of rubric/friction.py")
 
 
-@scoring_rule("pair_value_changes")
+@scoring_rule("pair_value_changes", reads=(BASELINE, "table_exercise"))
 def pair_value_changes(ctx: Context, item: Item, a) -> Outcome:
     tol = ctx.tol("pair_friction_abs")
     before, after = engine_pairs(ctx, BASELINE), engine_pairs(ctx, "table_exercise")
@@ -53,7 +53,7 @@ def pair_value_changes(ctx: Context, item: Item, a) -> Outcome:
                    ctx.backends(BASELINE, "table_exercise"))
 
 
-@scoring_rule("lane_travels_farther")
+@scoring_rule("lane_travels_farther", reads=(BASELINE,))
 def lane_travels_farther(ctx: Context, item: Item, a) -> Outcome:
     low, high = ctx.lane(BASELINE, "low"), ctx.lane(BASELINE, "high")
     evidence = {"low_stop_distance_m": low.stop.distance, "high_stop_distance_m": high.stop.distance,
@@ -91,7 +91,7 @@ def describe_changes(deltas: dict, evidence: dict) -> str:
         for lane, d in deltas.items())
 
 
-@scoring_rule("lane_unchanged")
+@scoring_rule("lane_unchanged", reads=(BASELINE, "table_exercise"))
 def lane_unchanged(ctx: Context, item: Item, a) -> Outcome:
     deltas, evidence, backends = lane_changes(ctx)
     if any(d is None for d in deltas.values()):
@@ -114,7 +114,7 @@ def measured_color_effect(ctx: Context) -> tuple[ColorEffect, dict[str, float | 
     return effect, evidence, ctx.backends(BASELINE, COLOR_SWAP)
 
 
-@scoring_rule("color_layer")
+@scoring_rule("color_layer", reads=(BASELINE, COLOR_SWAP))
 def color_layer(ctx: Context, item: Item, a) -> Outcome:
     effect, evidence, backends = measured_color_effect(ctx)
     ok = a.color_layer == "visual" and a.affects_results is effect.affects_results

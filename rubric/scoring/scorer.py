@@ -16,7 +16,7 @@ with no variant everything is the lesson's shipped table, exactly as before vari
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -41,6 +41,11 @@ SHEET_CASE_PREFIX = "sheet."
 # check stored with each grade is then evaluated on the submission's own runs. Measurements are reused across
 # students by content key (worker/reuse.py), so it costs one friction case once per engine version.
 LESSON_RUNS = ("N1", "N2", "N3", "N4", "friction-baseline", "friction-table-0.30", COLOR_SWAP)
+# The lesson case that measures what a student's config role is asked to be: the sheet's table exercise at 0.30 is
+# friction-table-0.30, its extension N5. Where the sheet submits no such config (a checkpoint sheet), the lesson case
+# is what would tell the answer of an item reading the role (`runs_read`).
+ROLE_LESSON_CASES = {"table_exercise": "friction-table-0.30", "extension": "N5"}
+EVERY_RUN = "every run"  # a rule that reads every run of the submission (the engine version of their provenance)
 
 
 class ItemGrade(BaseModel):
@@ -166,6 +171,11 @@ class Context:
         return case_name(self.sheet, role)
 
     def result(self, role: str) -> CaseResult:
+        if self.item is not None:
+            declared = RULE_READS[self.item.check]
+            if declared != EVERY_RUN and role not in declared:
+                raise KeyError(f"item {self.item.id} reads the run of {role!r} but its rule {self.item.check!r} "
+                               f"declares only {declared}")
         finding = self.findings.get(role)
         if finding is not None and not finding.ok:
             raise ConfigViolation(finding)
@@ -219,14 +229,37 @@ def variant_mismatch(expected, measured) -> str:
 
 # Each rubric item names its scoring rule in its `check` field (the key stays: a version's content hash covers it).
 SCORING_RULES: dict[str, Callable[[Context, Item, object], Outcome]] = {}
+# {rule name: the roles whose runs it may read, or EVERY_RUN}: declared with the rule, enforced by Context.result (a
+# rule reading an undeclared role is a rubric bug, as reading an undeclared tolerance is), and read by the service to
+# withhold every run that could answer a withheld item, whatever its verdict and in whichever submission (`runs_read`).
+RULE_READS: dict[str, tuple[str, ...] | str] = {}
 
 
-def scoring_rule(name: str):
-    """Register a scoring rule under the name rubric items give in their `check` field."""
+def scoring_rule(name: str, *, reads: tuple[str, ...] | str):
+    """Register a scoring rule under the name rubric items give in their `check` field, with the roles of the runs it
+    reads (lesson case names or a sheet's config roles; EVERY_RUN for all of them)."""
     def register(fn):
         SCORING_RULES[name] = fn
+        RULE_READS[name] = reads
         return fn
     return register
+
+
+def runs_read(rubric: Rubric, item_id: str, runs: Collection[str]) -> list[str]:
+    """The runs among `runs` (a submission's, by name) whose measurements could tell item `item_id`'s answer: for
+    each role its rule reads (RULE_READS), the sheet's run of it, the lesson case of that name and the lesson case that
+    measures what the role is asked to be (ROLE_LESSON_CASES); every run for a rule reading every run. None for an
+    item the rubric decides without measurement (conceptual, config). Whatever the item's verdict: a run that broke
+    the one-factor rule or failed is still what the item asks about."""
+    item = next((i for i in rubric.items if i.id == item_id), None)
+    if item is None or item.kind not in ("measured", "computed"):
+        return []
+    declared = RULE_READS[item.check]
+    if declared == EVERY_RUN:
+        return sorted(runs)
+    names = {name for role in declared
+             for name in (SHEET_CASE_PREFIX + role, role, ROLE_LESSON_CASES.get(role))}
+    return sorted(name for name in runs if name in names)
 
 
 def credit(ok: bool) -> "Verdict":

@@ -21,6 +21,14 @@ read (`backends`), for the items the rubric says are decided by measurement (kin
 `conceptual` or `config` item is decided by no run). A measured item that names no run read them all (the engine
 version of every run's provenance), and before a grade exists every run is withheld while any item is.
 
+Withholding of runs is per student and lesson, not per submission (issue 44, findings 5-A and 5-B): the lesson's runs
+are the same for every sheet of a student, so every item of the lesson that any assignment of the course withholds
+from the student (`lesson_withheld`, any part) withholds the runs that could tell its answer, on each of the
+student's submissions of the lesson: the runs its scoring rule reads by declaration (the lesson's `runs_read`),
+whatever the item's verdict (a hidden item graded one_factor_violation or not_measured still asks about them), and
+whether or not the submission answers it (a checkpoint submission's friction-baseline would answer B3 of the
+exercises). A shown item reading such a run keeps its score and verdict, its measured values wait with the run.
+
 What a run measured, not its name, decides what it tells (issue 44): a run of the submission that measured the same as
 a deciding run is withheld with it (`measurement_twins`): the same content key, measurement or evidence row (a reused
 run), the same metrics but for the case's name, or bit-identical arrays. The colour-swapped control measures exactly
@@ -51,6 +59,7 @@ from grader.core.timezones import iso
 from grader.core.models import Assignment, CaseEvidence, CaseRun, Grade, Submission, User, utcnow
 from grader.services.setup.assignments import counted_for, dates_for, item_ids, penalty_fraction
 from grader.services.identity import access
+from rubric.lesson import lesson
 
 
 def visibility_of(assignment: Assignment, item_id: str) -> str:
@@ -76,6 +85,32 @@ def withheld_items(*, session: Session, submission: Submission, user: User, now:
     return hidden
 
 
+def _lesson_assignments(session: Session, submission: Submission) -> list[Assignment]:
+    return list(session.scalars(select(Assignment).where(
+        Assignment.course_id == submission.course_id, Assignment.lesson == submission.lesson).order_by(Assignment.id)))
+
+
+def lesson_withheld(*, session: Session, submission: Submission, user: User, now: datetime) -> dict[str, str]:
+    """{item id: why} of every item of the submission's lesson, in any part, that an assignment of its course
+    withholds from its student at `now` (the submission's own assignment among them); empty for staff of the course.
+    The runs that could tell these items' answers are withheld on every submission of the student for the lesson."""
+    if access.is_staff(user) and user.course_id == submission.course_id:
+        return {}
+    hidden: dict[str, str] = {}
+    for assignment in _lesson_assignments(session, submission):
+        for i, reason in _withheld_by(session, assignment, submission.student, now).items():
+            hidden.setdefault(i, reason)
+    return hidden
+
+
+def runs_answering(lesson_name: str, items: Collection[str], runs: Sequence[str]) -> dict[str, list[str]]:
+    """{item id: the runs of `runs` that could tell its answer} for `items` of lesson `lesson_name`, as the lesson
+    declares its scoring rules' reads (rubric.lesson.Lesson.runs_read); items reading none left out."""
+    declared = lesson(lesson_name)
+    out = {i: declared.runs_read(i, runs) for i in sorted(items)}
+    return {i: names for i, names in out.items() if names}
+
+
 def _withheld_by(session: Session, assignment: Assignment, student: User, now: datetime) -> dict[str, str]:
     """{item id: why} of the items of `assignment` it withholds from `student` at `now`."""
     why: dict[str, str | None] = {Visibility.IMMEDIATE: None}
@@ -95,20 +130,13 @@ def _withheld_by(session: Session, assignment: Assignment, student: User, now: d
 def next_shown_at(*, session: Session, submission: Submission, user: User, now: datetime) -> datetime | None:
     """The next instant after `now` at which time alone shows `user` an item of `submission` withheld at `now` (a due
     date passing, the student's extension's where granted), or None where no such instant comes: releases and every
-    other change are writes. What a validator kept in memory must not outlive (grader.web.fresh)."""
+    other change are writes. What a validator kept in memory must not outlive (grader.web.fresh). Every assignment of
+the lesson counts, not only the submission's own: its due date can show an item whose runs this submission withholds."""
     if access.is_staff(user) and user.course_id == submission.course_id:
         return None
-    if submission.assignment is not None:
-        candidates = [(submission.assignment, None)]
-    else:
-        ids = set(item_ids(submission.lesson, submission.part))
-        candidates = [(a, ids) for a in session.scalars(select(Assignment).where(
-            Assignment.course_id == submission.course_id, Assignment.lesson == submission.lesson)
-            .order_by(Assignment.id))]
-    times = []
-    for assignment, only in candidates:
-        ids = [i for i in item_ids(assignment.lesson, assignment.part) if only is None or i in only]
-        if any(visibility_of(assignment, i) == Visibility.AFTER_DUE for i in ids):
+    times = []  # every assignment of the lesson: each one's withheld items withhold runs here (`lesson_withheld`)
+    for assignment in _lesson_assignments(session, submission):
+        if any(visibility_of(assignment, i) == Visibility.AFTER_DUE for i in item_ids(assignment.lesson, assignment.part)):
             due = dates_for(session=session, assignment=assignment, student=submission.student).due_at
             if due > now:
                 times.append(due)
@@ -132,22 +160,31 @@ def deciding_runs(item: dict, runs: list[str]) -> list[str]:
 
 
 def withheld_runs(report: dict | None, hidden: dict[str, str], runs: list[str],
-                  twins: Mapping[str, Collection[str]] | None = None) -> dict[str, str]:
+                  twins: Mapping[str, Collection[str]] | None = None,
+                  asked: Mapping[str, tuple[str, Collection[str]]] | None = None) -> dict[str, str]:
     """{case run name: why its measurements are withheld}: the runs deciding any withheld item of `report` (the
-    stored grade's), each with the items it decides and when they are shown, and each run of `twins` ({run: the runs
-    that measured the same}, `measurement_twins`) of a deciding one, which would tell the same. Without a report (not
-    graded yet) every run is withheld while any item is: nothing yet says which run decides which item."""
-    if not hidden:
+    stored grade's), the runs that could tell the answer of any item of `asked` ({item id: (why it is withheld, those
+    runs)}: every item of the lesson withheld from the student, `lesson_withheld` and `runs_answering`), each with the
+    items it decides and when they are shown, and each run of `twins` ({run: the runs that measured the same},
+    `measurement_twins`) of such a run, which would tell the same. Without a report (not graded yet) every run is
+    withheld while any item of the submission is: nothing yet says which run decided which item."""
+    asked = asked or {}
+    if not hidden and not asked:
         return {}
-    if report is None:
+    if report is None and hidden:
         why = "; ".join(sorted(set(hidden.values())))
         return {r: f"decides withheld items ({', '.join(sorted(hidden))}), {why}" for r in runs}
-    decides: dict[str, list[str]] = {}
-    for item in report.get("items", []):
+    decides: dict[str, set[str]] = {}
+    whys = {i: why for i, (why, _) in asked.items()} | hidden
+    for item in (report or {}).get("items", []):
         if item["id"] in hidden:
             for run in deciding_runs(item, runs):
-                decides.setdefault(run, []).append(item["id"])
-    out = {run: f"decides {', '.join(ids)}, " + "; ".join(sorted({hidden[i] for i in ids}))
+                decides.setdefault(run, set()).add(item["id"])
+    for item_id, (_, names) in asked.items():
+        for run in names:
+            if run in runs:
+                decides.setdefault(run, set()).add(item_id)
+    out = {run: f"decides {', '.join(sorted(ids))}, " + "; ".join(sorted({whys[i] for i in ids}))
            for run, ids in sorted(decides.items())}
     for run in list(out):  # sorted: a twin of two deciding runs is named after the first
         for twin in sorted((twins or {}).get(run, ())):
@@ -245,15 +282,17 @@ def _evidence_withheld(item: dict, runs: dict[str, str]) -> dict:
 
 
 def shown_report(report: dict, hidden: dict[str, str], runs: list[str] | None = None,
-                 twins: Mapping[str, Collection[str]] | None = None) -> dict:
+                 twins: Mapping[str, Collection[str]] | None = None,
+                 asked: Mapping[str, tuple[str, Collection[str]]] | None = None) -> dict:
     """The stored report as a student may see it: each withheld item keeps its question, points and the student's
     own prediction, but its score is None and its feedback says when it will be shown; the total counts the shown
     items only and `pending` says which points are still to come. The lab check (its conditions' evidence is
     measured against the same tolerances) is left out until nothing is withheld. Nothing is regraded on release.
-    `twins`: the runs that measured the same as each run (`measurement_twins`), withheld with a deciding one."""
-    if not hidden:
+    `twins`: the runs that measured the same as each run (`measurement_twins`), withheld with a deciding one; `asked`:
+    the lesson's items withheld from the student and the runs that could answer them (`withheld_runs`)."""
+    withheld = withheld_runs(report, hidden, runs if runs is not None else _read_runs(report), twins, asked)
+    if not hidden and not withheld:
         return report
-    withheld = withheld_runs(report, hidden, runs if runs is not None else _read_runs(report), twins)
     items, total, shown_max, pending_points = [], 0.0, 0.0, 0.0
     for item in report.get("items", []):
         if item["id"] not in hidden and set(item.get("backends") or {}) & set(withheld):
@@ -270,7 +309,7 @@ def shown_report(report: dict, hidden: dict[str, str], runs: list[str] | None = 
     names = [i["id"] for i in items if i["id"] in hidden]
     max_total = shown_max + pending_points
     note = (f"{pending_points:g} of {max_total:g} points pending ({', '.join(names)}): "
-            + "; ".join(sorted(set(hidden.values()))))
+            + "; ".join(sorted(set(hidden.values())))) if hidden else None
     # which item the grade's last override changed would tell a withheld one was overridden: left out while any is
     kept = {k: v for k, v in report.items() if k != "made_by_override"}
     return {**kept, "items": items, "total": round(total, 6), "max_total": max_total, "pending": note,
@@ -292,6 +331,9 @@ class GradeView:
     submission: Submission
     stored: Grade | None
     hidden: dict[str, str] = field(default_factory=dict)
+    # every item of the lesson withheld from the submission's student, in any assignment (`lesson_withheld`): the
+    # runs that could answer them are withheld here too
+    lesson_hidden: dict[str, str] = field(default_factory=dict)
 
     @property
     def item_count(self) -> int:
@@ -319,9 +361,18 @@ class GradeView:
         """The report as this user may see it (the stored one where nothing is withheld)."""
         if not self.shown:
             return None
-        if not self.hidden:
+        if not self.hidden and not self.lesson_hidden:
             return self.stored.report
-        return shown_report(self.stored.report, self.hidden, self.run_names, self.twins)
+        return shown_report(self.stored.report, self.hidden, self.run_names, self.twins, self.asked)
+
+    @cached_property
+    def asked(self) -> dict[str, tuple[str, list[str]]]:
+        """{item id: (why it is withheld, the submission's runs that could answer it)} for the lesson's items withheld
+        from the student (`lesson_withheld`, `runs_answering`)."""
+        if not self.lesson_hidden:
+            return {}
+        answering = runs_answering(self.submission.lesson, self.lesson_hidden, self.run_names)
+        return {i: (self.lesson_hidden[i], names) for i, names in answering.items()}
 
     @property
     def run_names(self) -> list[str]:
@@ -331,7 +382,7 @@ class GradeView:
     def twins(self) -> dict[str, list[str]]:
         """{run name: the submission's other runs that measured the same} (`measurement_twins`); read only while
         something is withheld."""
-        return measurement_twins(self.submission.case_runs) if self.hidden else {}
+        return measurement_twins(self.submission.case_runs) if self.hidden or self.lesson_hidden else {}
 
     @cached_property
     def withheld_runs(self) -> dict[str, str]:
@@ -339,10 +390,10 @@ class GradeView:
         their series, metrics, provenance and evidence files, and those of every run that measured the same. A
         function of `hidden`, the stored grade and the submission's runs (their states and deliveries say when what
         they measured changes), which the report's validator (grader.web.etag.report_state) already covers."""
-        if not self.hidden:
+        if not self.hidden and not self.lesson_hidden:
             return {}
         return withheld_runs(self.stored.report if self.stored is not None else None, self.hidden, self.run_names,
-                             self.twins)
+                             self.twins, self.asked)
 
     @property
     def total(self) -> float | None:
@@ -379,9 +430,11 @@ def grade_view(*, session: Session, submission: Submission, user: User, now: dat
     """The current grade of `submission` as `user` may see it at `now` (default: now).
 
     `report=False` defers the grade's report (the largest JSON) until a withheld item needs it masked."""
-    hidden = withheld_items(session=session, submission=submission, user=user, now=now or utcnow())
+    now = now or utcnow()
+    hidden = withheld_items(session=session, submission=submission, user=user, now=now)
     return GradeView(submission=submission, stored=current_grade(session, submission.id, report=report),
-                     hidden=hidden)
+                     hidden=hidden, lesson_hidden=lesson_withheld(session=session, submission=submission, user=user,
+                                                                  now=now))
 
 
 def attempt_standing(session: Session, submission: Submission, user: User, view: GradeView | None = None) -> dict:

@@ -14,13 +14,14 @@ from rubric import CHECK_CASES
 from tests.factories import mark_measured, reference_sheet, sheet_results
 
 
-def _submission_ready_to_grade(api, measured) -> int:
-    """Alice's reference sheet, its case runs stored as measured (the session's real results), now 'grading'."""
+def _submission_ready_to_grade(api, measured, sheet: dict | None = None) -> int:
+    """Alice's reference sheet (or `sheet`), its case runs stored as measured (the session's real results), now
+    'grading'."""
     from grader.core.db import new_session
     from grader.core.models import Submission, utcnow
     from grader.core.settings import settings
 
-    response = api.client.post("/v1/submissions", json={"sheet": reference_sheet()}, headers=api.as_("alice"))
+    response = api.client.post("/v1/submissions", json={"sheet": sheet or reference_sheet()}, headers=api.as_("alice"))
     assert response.status_code == 202, response.text
     submission_id = response.json()["id"]
     results = sheet_results(measured)

@@ -22,13 +22,13 @@ def free_submit(api, who="alice"):
                            headers=api.as_(who))
 
 
-def free_graded(api, measured, *, complete: bool = False) -> int:
-    """Alice's free submission of the whole sheet, graded by the worker's own task on the session's real
-    measurements (and its figures and lab check drawn with `complete`)."""
+def free_graded(api, measured, *, complete: bool = False, sheet: dict | None = None) -> int:
+    """Alice's free submission of the whole sheet (the reference one, or `sheet`), graded by the worker's own task on
+    the session's real measurements (and its figures and lab check drawn with `complete`)."""
     from grader.core.db import new_session
     from worker.grading import complete_grade, grade_submission
 
-    sid = _submission_ready_to_grade(api, measured)
+    sid = _submission_ready_to_grade(api, measured, sheet)
     with new_session() as session:
         assert grade_submission(session=session, submission_id=sid) is not None
         if complete:

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import html
 
-from tests.grader.services.setup.test_assignments import create
+from tests.factories import reference_sheet
+from tests.grader.services.setup.test_assignments import create, submit
 from tests.grader.services.submissions.test_integrity_withholding import free_graded, grade_of
 
 COMMENT = "A2's direction is read from both pairs; the answer given names only one."
@@ -127,12 +128,15 @@ def test_a_run_that_measured_the_same_as_a_deciding_one_is_withheld_with_it_what
     stops = {s for m in metrics.values() for s in _stops(m)}
     assert stops, metrics
 
-    # Evidence downloads (API and page) answer as for the deciding run, naming the run it measured the same as.
+    # Evidence downloads (API and page) answer as for the deciding run: the colour-swapped control names the run it
+    # measured the same as; friction-table-0.30 is itself what B3 asks of a table exercise (its rule's declared reads).
+    why = {"friction-baseline-colors-swapped": "measured the same as friction-baseline, which decides B3",
+           "friction-table-0.30": "it decides B3"}
     for twin, run in twins.items():
         for name in ("arrays.npz", "metrics.json", "provenance.json"):
             refused = _get(api, f"/v1/submissions/{sid}/case-runs/{twin}/files/{name}")
             assert refused.status_code == 409, (twin, name, refused.status_code)
-            assert f"measured the same as {run}, which decides B3" in refused.json()["detail"], refused.text
+            assert why[twin] in refused.json()["detail"], refused.text
             assert _get(api, f"/submissions/{sid}/case-runs/{twin}/{name}").status_code == 409, (twin, name)
             assert _get(api, f"/v1/submissions/{sid}/case-runs/{twin}/files/{name}", "prof").status_code == 200
     withheld = deciding | set(twins)
@@ -163,6 +167,62 @@ def test_a_run_that_measured_the_same_as_a_deciding_one_is_withheld_with_it_what
     assert _get(api, f"/v1/submissions/{sid}/series").json()["withheld"] == {}
     assert all(s in html.unescape(_get(api, f"/submissions/{sid}").text) for s in stops)
 
+
+
+FRICTION_RUNS = {"friction-baseline", "friction-table-0.30", "friction-baseline-colors-swapped"}
+
+
+def _withheld_everywhere(api, sid, runs: set[str], because: str) -> None:
+    """Each of `runs` is withheld from alice on every surface (downloads of the API and the page, the API's case runs,
+    the charts' series of both) with `because` in its reason, and shown to the course's instructor."""
+    for run in runs:
+        refused = _get(api, f"/v1/submissions/{sid}/case-runs/{run}/files/metrics.json")
+        assert refused.status_code == 409 and because in refused.json()["detail"], (run, refused.text)
+        assert _get(api, f"/submissions/{sid}/case-runs/{run}/arrays.npz").status_code == 409, run
+        assert _get(api, f"/v1/submissions/{sid}/case-runs/{run}/files/metrics.json", "prof").status_code == 200
+    listed = {r["name"]: r for r in _get(api, f"/v1/submissions/{sid}/case-runs").json()}
+    assert all(listed[r]["metrics"] is None for r in runs) and listed["N1"]["metrics"] is not None
+    for path in (f"/submissions/{sid}/series.json", f"/v1/submissions/{sid}/series"):
+        assert set(_get(api, path).json()["withheld"]) == runs, path
+
+
+def test_a_checkpoint_submission_withholds_the_lesson_runs_an_item_withheld_in_another_assignment_reads(api, lesson_measured):
+    """Issue 44, finding 5-A: withholding is per student and lesson. With B3 withheld until the exercises are
+    released, alice's checkpoint submission (graded at once on the lesson's runs, C1-C8 shown) showed friction-baseline
+    and friction-table-0.30, whose stops answer B3. They are withheld there too, with the colour-swapped twin; C5
+    keeps its score while its measured values wait with the run; the release shows them."""
+    exercises = create(api, title="Exercises", part="exercises", item_visibility={"B3": "on_release"}).json()["id"]
+    checkpoints = create(api).json()["id"]  # immediate: nothing of it withheld
+    submitted = submit(api, checkpoints)
+    assert submitted.status_code in (200, 201, 202), submitted.text
+    sid = submitted.json()["id"]
+    grade = grade_of(api, sid, "alice").json()
+    items = {i["id"]: i for i in grade["items"]}
+    assert set(items) == {f"C{n}" for n in range(1, 9)} and "pending" not in {i["verdict"] for i in items.values()}
+    _withheld_everywhere(api, sid, FRICTION_RUNS, "B3, shown once “Exercises” is released")
+    staff_c5 = {i["id"]: i for i in grade_of(api, sid, "prof").json()["items"]}["C5"]
+    assert (items["C5"]["score"], items["C5"]["verdict"]) == (staff_c5["score"], staff_c5["verdict"])
+    assert items["C5"]["evidence"] is None and items["C5"]["evidence_withheld"] == ["friction-baseline"]
+    assert items["C1"] == {i["id"]: i for i in grade_of(api, sid, "prof").json()["items"]}["C1"]  # reads N4 only
+
+    assert api.client.post(f"/v1/assignments/{exercises}/release", headers=api.as_("prof")).status_code == 200
+    for run in FRICTION_RUNS:
+        assert _get(api, f"/v1/submissions/{sid}/case-runs/{run}/files/metrics.json").status_code == 200, run
+    assert _get(api, f"/v1/submissions/{sid}/series").json()["withheld"] == {}
+    assert {i["id"]: i for i in grade_of(api, sid, "alice").json()["items"]}["C5"] == staff_c5
+
+
+def test_a_withheld_item_no_measurement_decided_still_withholds_the_runs_it_asks_about(api, measured):
+    """Issue 44, finding 5-B: B3 withheld, and the sheet's table exercise changed two factors (not run, B3 graded
+    one_factor_violation, naming no run): the lesson's friction runs it asks about were shown. They are withheld by
+    what B3's rule reads, whatever its verdict."""
+    sheet = reference_sheet()
+    sheet["configs"]["table_exercise"] |= {"cube_rho": 800.0}
+    create(api, part="exercises", item_visibility={"B3": "on_release"})
+    sid = free_graded(api, measured, complete=True, sheet=sheet)
+    staff = {i["id"]: i for i in grade_of(api, sid, "prof").json()["items"]}
+    assert staff["B3"]["verdict"] == "one_factor_violation" and not staff["B3"]["backends"], staff["B3"]
+    _withheld_everywhere(api, sid, FRICTION_RUNS, "B3, shown once")
 
 
 def test_runs_measured_alike_by_key_by_evidence_by_metrics_or_by_arrays_are_twins(api, measured):
