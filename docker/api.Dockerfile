@@ -24,4 +24,6 @@ EXPOSE 8000
 HEALTHCHECK --interval=15s --timeout=5s --retries=5 \
     CMD python -c "import urllib.request; urllib.request.urlopen('http://127.0.0.1:8000/v1/health')"
 # API_WORKERS processes under uvicorn's own supervisor (it restarts one that dies); docker-compose.yml sets 2.
-CMD ["sh", "-c", "grader admin migrate && exec uvicorn grader.main:app --host 0.0.0.0 --port 8000 --workers ${API_WORKERS:-1}"]
+# --no-proxy-headers: uvicorn would otherwise trust X-Forwarded-For from 127.0.0.1 (a process in the container); the app
+# trusts only FORWARDED_ALLOW_IPS, the proxy in front of it (grader.web.admission.TrustedProxies).
+CMD ["sh", "-c", "grader admin migrate && exec uvicorn grader.main:app --host 0.0.0.0 --port 8000 --no-proxy-headers --workers ${API_WORKERS:-1}"]

@@ -114,6 +114,9 @@ def test_the_api_is_reached_only_through_a_tls_and_buffering_proxy(compose):
     subnet = ipaddress.ip_network(compose["networks"]["default"]["ipam"]["config"][0]["subnet"])
     proxy_address = proxy["networks"]["default"]["ipv4_address"]
     assert api["environment"]["FORWARDED_ALLOW_IPS"] == proxy_address and ipaddress.ip_address(proxy_address) in subnet
+    # ... by the app alone: uvicorn's own handling (on by default) would trust any process on the container's loopback
+    command = (ROOT / "docker" / "api.Dockerfile").read_text().split("\nCMD ")[1]
+    assert "uvicorn grader.main:app" in command and "--no-proxy-headers" in command
     assert proxy["image"].startswith("nginx:") and {"443:443", "80:80"} <= set(proxy["ports"])
     assert proxy["depends_on"]["api"]["condition"] == "service_healthy"
     config_mount = next(v for v in proxy["volumes"] if v.endswith(":/etc/nginx/nginx.conf:ro"))
