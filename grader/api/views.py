@@ -48,7 +48,7 @@ def grade_public(view: GradeView) -> GradePublic:
         rubric_lesson=grade.rubric_lesson, rubric_version=grade.rubric_version, rubric_hash=grade.rubric_hash,
         items=report.get("items", []), created_at=grade.created_at, superseded_at=grade.superseded_at,
         regrade_id=grade.regrade_id, pending=view.pending,
-        withheld_measurements=report.get("withheld_measurements", {}) if view.hidden else {},
+        withheld_measurements=report.get("withheld_measurements", {}),  # only a masked report has any
     )
 
 

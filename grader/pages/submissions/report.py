@@ -146,12 +146,14 @@ def series_json(request: Request, submission_id: int, session: SessionDep, user:
     if submission is None:
         return not_found(request, user, f"series of submission {submission_id}")
     # The runs deciding an item withheld from this reader carry no series (GradeView.withheld_runs): what is withheld
-    # (the items, why, and the grade they are withheld from) is part of the validator, like the report's.
+    # (the items, why, the lesson's items withheld from the student elsewhere, and the grade they are withheld from) is
+    # part of the validator, like the report's.
     grade = grade_view(session=session, submission=submission, user=user, report=False)
     # Built once per state of its runs (and reader) while the submission is finished: a report view asks again.
     tag = etag.etag_of("series", [user.id, submission.id, chart_series.SHAPE, *[
         [r.id, r.status, r.result_status, r.reused_from_id, str(r.finished_at)] for r in submission.case_runs]],
-        sorted(grade.hidden.items()), grade.stored.id if grade.stored is not None else None) \
+        sorted(grade.hidden.items()), sorted(grade.lesson_hidden.items()),
+        grade.stored.id if grade.stored is not None else None) \
         if submission.status in (SubmissionState.GRADED, SubmissionState.FAILED) else None
     return etag.conditional(request, tag, lambda: JSONResponse(chart_series.submission_series(
         submission=submission, withheld=grade.withheld_runs), headers={"Cache-Control": "private, no-cache"}),

@@ -205,10 +205,17 @@ def test_a_checkpoint_submission_withholds_the_lesson_runs_an_item_withheld_in_a
     assert items["C5"]["evidence"] is None and items["C5"]["evidence_withheld"] == ["friction-baseline"]
     assert items["C1"] == {i["id"]: i for i in grade_of(api, sid, "prof").json()["items"]}["C1"]  # reads N4 only
 
+    assert set(grade["withheld_measurements"]) == FRICTION_RUNS
+    page = html.unescape(_get(api, f"/submissions/{sid}").text)
+    assert 'id="withheld-measurements"' in page and "friction-table-0.30" in page.split('id="withheld-measurements"')[1]
+
     assert api.client.post(f"/v1/assignments/{exercises}/release", headers=api.as_("prof")).status_code == 200
     for run in FRICTION_RUNS:
         assert _get(api, f"/v1/submissions/{sid}/case-runs/{run}/files/metrics.json").status_code == 200, run
-    assert _get(api, f"/v1/submissions/{sid}/series").json()["withheld"] == {}
+    for path in (f"/submissions/{sid}/series.json", f"/v1/submissions/{sid}/series"):  # no answer kept from before
+        assert _get(api, path).json()["withheld"] == {}, path
+    assert grade_of(api, sid, "alice").json()["withheld_measurements"] == {}
+    assert 'id="withheld-measurements"' not in _get(api, f"/submissions/{sid}").text
     assert {i["id"]: i for i in grade_of(api, sid, "alice").json()["items"]}["C5"] == staff_c5
 
 
