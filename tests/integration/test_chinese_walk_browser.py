@@ -37,7 +37,7 @@ def shoot(page, name: str) -> None:
 
 def in_chinese(page) -> None:
     assert page.get_attribute("html", "lang") == "zh"
-    assert page.inner_text("header .brand") == "L03 自动评分系统"
+    assert page.inner_text("header .brand") == "Genesis 实验自动评分系统"
     # The switch names each language in its own language, and says which one is on.
     assert page.inner_text("form.language button[value=en]") == "English"
     assert page.get_attribute("form.language button[value=zh]", "aria-pressed") == "true"

@@ -202,7 +202,7 @@ def test_every_student_page_renders_in_chinese_with_nothing_untranslated(api):
     for name, page in pages.items():
         assert page.status_code in (200, 404, 409), (name, page.status_code, page.text[:500])
         assert '<html lang="zh">' in page.text, name
-        assert "L03 自动评分系统" in page.text, name
+        assert "Genesis 实验自动评分系统" in page.text, name
     assert "课程 l03" in pages["course"].text and "填写答题表" in pages["course"].text
     assert "现在不接受：" in pages["not open sheet"].text and "开放；现在是" in pages["not open sheet"].text
     assert "违反单因素规则" in pages["checked"].text and "不允许改动" in pages["checked"].text
@@ -235,7 +235,7 @@ def test_every_staff_page_renders_in_chinese_with_nothing_untranslated(api):
     pages = {name: api.client.get(path, headers=prof) for name, path in paths.items()}
     for name, page in pages.items():
         assert page.status_code == 200, (name, page.status_code, page.text[:500])
-        assert '<html lang="zh">' in page.text and "L03 自动评分系统" in page.text, name
+        assert '<html lang="zh">' in page.text and "Genesis 实验自动评分系统" in page.text, name
     assert "课程设置：l03" in pages["set-up"].text and "设置时区" in pages["set-up"].text
     assert "学生名单" in pages["set-up"].text and "学习管理系统平台（LTI 1.3）" in pages["set-up"].text
     assert "计分的提交" in pages["new assignment"].text and "批准延期" in pages["assignment"].text
