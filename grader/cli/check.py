@@ -1,4 +1,5 @@
-"""`grader check`: run the lab's cases on real Genesis and print every L03 condition with its evidence."""
+"""`grader check`: run a lesson's lab check cases on real Genesis and print every condition with its evidence
+(`--lesson`, an installed lesson's name: L03 by default)."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from rubric import CaseResult, with_backend
 from rubric.check import OutputLocation
 from rubric.lesson import Lesson
 from rubric.lesson import lesson as installed_lesson
+from rubric.lesson import lesson_names
 
 from grader.check_report import write_check_report
 from worker import run_cases
@@ -92,11 +94,14 @@ def run_check(
 @click.option("--spec", "overrides", multiple=True, type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="A case spec JSON replacing the check case of the same name (repeatable).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON instead of text.")
-def check(backend, render, mode, jobs, out_dir, overrides, as_json) -> None:
-    """Run N1-N4 and both friction runs, evaluate every L03 condition, print L03 CHECK: PASSED or FAILED."""
+@click.option("--lesson", "lesson_name", type=click.Choice(lesson_names()), default="L03", show_default=True,
+              help="The installed lesson whose lab check runs (`grader lesson list`).")
+def check(backend, render, mode, jobs, out_dir, overrides, as_json, lesson_name) -> None:
+    """Run the lesson's check cases (L03: N1-N4 and both friction runs), evaluate every condition of its lab check,
+    print <LESSON> CHECK: PASSED or FAILED."""
     echo = (lambda *a, **k: click.echo(*a, err=True, **k)) if as_json else click.echo
     report, _ = run_check(backend=backend, render=render, mode=mode, jobs=jobs, out_dir=out_dir,
-                          overrides=list(overrides), echo=echo)
+                          overrides=list(overrides), echo=echo, lesson=installed_lesson(lesson_name))
     click.echo(report.model_dump_json(indent=2) if as_json else "\n" + report.render_text())
     if not as_json:
         click.echo(f"\nevidence: {out_dir / 'cases'}  report: {out_dir / 'report.html'}")

@@ -58,3 +58,15 @@ def test_case_show_prints_a_runnable_spec_and_schema_lists_the_fields():
     assert "ContactCase" in json.dumps(schema) and "FrictionCase" in json.dumps(schema)
     unknown = grader("case", "show", "N9")
     assert unknown.returncode != 0 and "known cases: N1" in unknown.stderr
+
+
+def test_check_takes_an_installed_lessons_name_and_refuses_any_other(tmp_path):
+    """`grader check --lesson NAME` (issue 45): the choices are the installed lessons; an unknown name runs nothing."""
+    from click.testing import CliRunner
+
+    from grader.cli.check import check
+
+    unknown = CliRunner().invoke(check, ["--lesson", "L99", "--out", str(tmp_path / "check")])
+    assert unknown.exit_code == 2 and "Invalid value for '--lesson'" in unknown.output and "'L03'" in unknown.output
+    assert not (tmp_path / "check").exists()
+    assert "--lesson [L03]" in CliRunner().invoke(check, ["--help"]).output
