@@ -417,8 +417,14 @@ def untranslated(locale: str) -> list[str]:
     empty or fuzzy): what a translator still has to do."""
     with (TRANSLATIONS_DIR / f"{DOMAIN}.pot").open("rb") as f:
         template = read_po(f)
-    have = known(locale)
-    return sorted(str(m.id) for m in template if m.id and (m.id if isinstance(m.id, str) else m.id[0]) not in have)
+    with (TRANSLATIONS_DIR / locale / "LC_MESSAGES" / f"{DOMAIN}.po").open("rb") as f:
+        catalog = read_po(f)
+
+    def done(message) -> bool:  # every form filled (a plural's too: compiling fills an empty one with the msgid)
+        strings = message.string if isinstance(message.string, tuple) else (message.string,)
+        return not message.fuzzy and all(strings)
+
+    return sorted(str(m.id) for m in template if m.id and not ((t := catalog.get(m.id)) is not None and done(t)))
 
 
 def main() -> int:

@@ -20,6 +20,7 @@ from grader.core.settings import settings
 from grader.core.states import CaseRunPurpose, CaseRunState, ExecutionMode, SubmissionState
 from grader.core.variants import measuring_submissions
 from grader.services.identity import access
+from rubric.lesson import lesson
 
 # The last measured runs an estimate is taken over: enough to be steady, few enough to follow a faster worker.
 MEASURED_RUNS_KEPT = 50
@@ -30,9 +31,14 @@ FINISHED = (SubmissionState.GRADED, SubmissionState.FAILED)
 class Estimate:
     """How long a run is expected to take, from measured durations: their median and range over `runs` runs.
 
-    `basis` "case": earlier runs of this very case (same physics) on its backend; "kind": runs of any case of its kind
-    (contact, friction) on its backend, for a configuration never measured. Only runs that measured a case themselves
-    count (not a reused measurement), in the execution mode the run will have; in a warm case process only those that
+    `basis` "case": earlier runs of this very case (same physics) on its backend; "size": a configuration never
+    measured, from its size: what a run of its kind (contact, friction) measured on its backend takes besides its
+    stepping (the median of their wall time less their stepping time: building or resetting the scene, writing the
+    arrays), plus its internal updates (`updates`) times their stepping time per internal update (median; low and high
+    from the fastest and slowest per update). A config of 37,500 updates is not a 150-update case (issue 49): measured
+    here, N5's 600 updates were estimated within 10% from N1-N4's 75-300. "kind": runs of any case of its kind, where
+    neither is known. Only runs that measured a case themselves count
+    (not a reused measurement), in the execution mode the run will have; in a warm case process only those that
     reused a built scene, so a process's start, Genesis' import and a first scene build (the warm-up) are left out."""
 
     median_s: float
@@ -40,6 +46,7 @@ class Estimate:
     high_s: float
     runs: int
     basis: str
+    updates: int | None = None  # basis "size": the run's own internal updates
 
 
 @dataclass(frozen=True)
@@ -107,6 +114,7 @@ class Progress:
     running_on_backend: dict[str, int]  # runs being run now on each backend this submission waits on, its own too
     ahead_s: float | None  # estimated case time before this submission's first waiting run; None: nothing waits
     ahead_unmeasured: int  # runs ahead (running or queued) with no estimate or past it (not in ahead_s)
+    ahead_never_measured: int  # runs in ahead_s estimated from their size or kind, never measured themselves
     own_s: float | None  # estimated time of this submission's unfinished runs; None: one has no estimate
     running_ahead: list[RunningAhead] = field(default_factory=list)
     warming_up: "WarmingUp | None" = None  # its runs wait for workers still warming up (none warm on their queue)
@@ -144,14 +152,16 @@ def submission_progress(*, session: Session, user: User, submission_id: int) -> 
     backends = sorted({r.backend for r in runs if r.status == CaseRunState.QUEUED})
     order = {backend: queue_order(session, backend) for backend in backends}
     places = {run_id: (i + 1, len(ids)) for ids in order.values() for i, run_id in enumerate(ids)}
-    rows = [_row(r, places.get(r.id), estimates.of(r.spec_key, r.kind, r.backend, r.mode), now) for r in runs]
+    rows = [_row(r, places.get(r.id), estimates.of(r.spec_key, r.kind, r.backend, r.mode,
+                                                   internal_updates(submission.lesson, r.kind, r.spec)), now)
+            for r in runs]
     running_ahead = _running_ahead(session, backends, {r.id for r in runs}, estimates, now)
-    ahead_s, unmeasured = _ahead(session, order, rows, running_ahead, estimates)
+    ahead_s, unmeasured, never = _ahead(session, order, rows, running_ahead, estimates)
     unfinished = [row for row in rows if not row.finished]
     own = None if any(row.estimate is None for row in unfinished) else sum(row.remaining_s for row in unfinished)
     return Progress(submission=submission, status=submission.status, runs=rows,
                     running_on_backend={b: _running(session, b) for b in backends},
-                    ahead_s=ahead_s, ahead_unmeasured=unmeasured, own_s=own, running_ahead=running_ahead,
+                    ahead_s=ahead_s, ahead_unmeasured=unmeasured, ahead_never_measured=never, own_s=own, running_ahead=running_ahead,
                     warming_up=warming_up(backends))
 
 
@@ -188,19 +198,43 @@ def _row(run: CaseRun, place: tuple[int, int] | None, estimate: Estimate | None,
                        wall_s=run.wall_s, error=run.error)
 
 
+def internal_updates(lesson_name: str, kind: str, spec: dict | None) -> int | None:
+    """A stored spec's internal updates (outer steps x substeps), as its lesson's case kind derives them; None where
+    the lesson's kind says none or the spec does not validate (its run is then estimated by its kind alone)."""
+    try:
+        model = lesson(lesson_name).case_kinds[kind].model_validate(spec or {})
+    except Exception:  # noqa: BLE001 - an estimate is never worth a failed page
+        return None
+    updates = getattr(model, "internal_updates", None)
+    return updates if isinstance(updates, int) and updates > 0 else None
+
+
 class _Estimates:
     """Estimates by (spec_key, kind, backend, mode), each read once per request."""
 
     def __init__(self, session: Session):
         self.session, self._cache = session, {}
 
-    def of(self, spec_key: str | None, kind: str, backend: str, mode: str | None) -> Estimate | None:
-        """The estimate of a run: from earlier runs of the same case, else from runs of cases of its kind."""
+    def of(self, spec_key: str | None, kind: str, backend: str, mode: str | None,
+           updates: int | None = None) -> Estimate | None:
+        """The estimate of a run: from earlier runs of the same case, else from its size (`updates`, its internal
+        updates) at the measured time per update of its kind, else from runs of cases of its kind."""
         mode = mode or settings.execution_mode  # a run that names no mode runs in the worker's
         if spec_key is not None:
             found = self._get("case", spec_key, backend, mode)
             if found is not None:
                 return found
+        if updates:
+            key = ("size", kind, backend, mode)
+            if key not in self._cache:
+                self._cache[key] = _size_model(self.session, kind, backend, mode)
+            model = self._cache[key]
+            if model is not None:
+                overhead_s, per_update = model
+                return Estimate(median_s=overhead_s + per_update.median_s * updates,
+                                low_s=overhead_s + per_update.low_s * updates,
+                                high_s=overhead_s + per_update.high_s * updates, runs=per_update.runs, basis="size",
+                                updates=updates)
         return self._get("kind", kind, backend, mode)
 
     def _get(self, basis: str, value: str, backend: str, mode: str) -> Estimate | None:
@@ -210,14 +244,37 @@ class _Estimates:
         return self._cache[key]
 
 
+def _measured(kind_or_key, backend: str, mode: str):
+    """The conditions of a run that measured its case (one case by spec_key, or a kind) as a warm or isolated worker
+    would take it again (see Estimate)."""
+    return (kind_or_key, CaseRun.backend == backend, CaseRun.status == CaseRunState.DONE,
+            CaseRun.result_status == "ok", CaseRun.reused_from_id.is_(None), CaseRun.wall_s.is_not(None),
+            CaseRun.provenance["execution_mode"].as_string() == mode)
+
+
+def _size_model(session: Session, kind: str, backend: str, mode: str) -> tuple[float, Estimate] | None:
+    """(what a run of `kind` takes besides stepping, its stepping time per internal update as an Estimate) from the
+    latest MEASURED_RUNS_KEPT runs of the kind on `backend` in `mode` that recorded both; None without any. Any scene
+    counts (a fresh build is part of what a new config costs); the overhead is a median, so a process's first case
+    (Genesis' import and its first build, tens of seconds) is one outlier among them, not the estimate."""
+    updates = CaseRun.provenance[("discretization", "internal_updates")].as_integer()
+    stepping = CaseRun.provenance[("timings", "steps_s")].as_float()
+    rows = session.execute(select(CaseRun.wall_s, updates, stepping)
+                           .where(*_measured(CaseRun.kind == kind, backend, mode), updates > 0, stepping.is_not(None))
+                           .order_by(CaseRun.finished_at.desc(), CaseRun.id.desc()).limit(MEASURED_RUNS_KEPT)).all()
+    if not rows:
+        return None
+    overhead = statistics.median(max(0.0, wall - steps) for wall, _, steps in rows)
+    per_update = [steps / n for _, n, steps in rows]
+    return overhead, Estimate(median_s=statistics.median(per_update), low_s=min(per_update), high_s=max(per_update),
+                              runs=len(rows), basis="size")
+
+
 def _estimate(session: Session, basis: str, value: str, backend: str, mode: str) -> Estimate | None:
     """The median and range of the latest MEASURED_RUNS_KEPT measured durations of runs of one case (`basis` "case",
     `value` its spec_key) or one kind of case ("kind"), on `backend`, in execution mode `mode` (see Estimate)."""
-    query = (select(CaseRun.wall_s)
-             .where(CaseRun.spec_key == value if basis == "case" else CaseRun.kind == value,
-                    CaseRun.backend == backend, CaseRun.status == CaseRunState.DONE, CaseRun.result_status == "ok",
-                    CaseRun.reused_from_id.is_(None), CaseRun.wall_s.is_not(None),
-                    CaseRun.provenance["execution_mode"].as_string() == mode))
+    query = select(CaseRun.wall_s).where(*_measured(CaseRun.spec_key == value if basis == "case"
+                                                    else CaseRun.kind == value, backend, mode))
     if mode == ExecutionMode.WARM:
         query = query.where(CaseRun.provenance["scene"].as_string() == "reused")
     walls = list(session.scalars(query.order_by(CaseRun.finished_at.desc(), CaseRun.id.desc())
@@ -289,41 +346,49 @@ def _running_ahead(session: Session, backends: list[str], own: set[int], estimat
     if not backends:
         return []
     rows = session.execute(
-        select(CaseRun.id, CaseRun.kind, CaseRun.backend, CaseRun.spec_key, CaseRun.mode, CaseRun.started_at)
+        select(CaseRun.id, CaseRun.kind, CaseRun.backend, CaseRun.spec_key, CaseRun.mode, CaseRun.started_at,
+               CaseRun.spec, Submission.lesson)
+        .join(Submission, CaseRun.submission_id == Submission.id)
         .where(CaseRun.backend.in_(backends), CaseRun.status == CaseRunState.RUNNING)
         .order_by(CaseRun.started_at, CaseRun.id)).all()
     return [RunningAhead(kind=r.kind, backend=r.backend, running_s=_elapsed(r.started_at, now),
-                         estimate=estimates.of(r.spec_key, r.kind, r.backend, r.mode))
+                         estimate=estimates.of(r.spec_key, r.kind, r.backend, r.mode,
+                                               internal_updates(r.lesson, r.kind, r.spec)))
             for r in rows if r.id not in own]
 
 
 def _ahead(session: Session, order: dict[str, list[int]], rows: list[RunProgress], running: list[RunningAhead],
-           estimates: _Estimates) -> tuple[float | None, int]:
+           estimates: _Estimates) -> tuple[float | None, int, int]:
     """Estimated case time before this submission's first waiting run on each backend: what others' running runs
-    still need and the estimates of the runs queued ahead of it, summed; and how many of those have no estimate.
-    (None, 0) when nothing of this submission waits."""
+    still need and the estimates of the runs queued ahead of it, summed; how many of those have no estimate; and how
+    many of the summed ones were never measured themselves (estimated from their size or kind). (None, 0, 0) when
+    nothing of this submission waits."""
     if not any(row.position for row in rows):
-        return None, 0
+        return None, 0, 0
     ahead_ids = []
     for backend, ids in order.items():
         first = min((row.position for row in rows if row.backend == backend and row.position), default=None)
         if first:
             ahead_ids.extend(ids[:first - 1])
-    total, unmeasured = 0.0, 0
+    total, unmeasured, never = 0.0, 0, 0
     for run in running:
         if run.remaining_s is None or run.overdue:  # past its estimate: what it still needs is not known
             unmeasured += 1
         else:
             total += run.remaining_s
+            never += run.estimate.basis != "case"
     if ahead_ids:
-        for r in session.execute(select(CaseRun.spec_key, CaseRun.kind, CaseRun.backend, CaseRun.mode)
+        for r in session.execute(select(CaseRun.spec_key, CaseRun.kind, CaseRun.backend, CaseRun.mode, CaseRun.spec,
+                                        Submission.lesson)
+                                 .join(Submission, CaseRun.submission_id == Submission.id)
                                  .where(CaseRun.id.in_(ahead_ids))).all():
-            found = estimates.of(r.spec_key, r.kind, r.backend, r.mode)
+            found = estimates.of(r.spec_key, r.kind, r.backend, r.mode, internal_updates(r.lesson, r.kind, r.spec))
             if found is None:
                 unmeasured += 1
             else:
                 total += found.median_s
-    return total, unmeasured
+                never += found.basis != "case"
+    return total, unmeasured, never
 
 
 def _running(session: Session, backend: str) -> int:
@@ -335,7 +400,7 @@ def _estimate_json(estimate: Estimate | None) -> dict | None:
     if estimate is None:
         return None
     return {"median_s": estimate.median_s, "low_s": estimate.low_s, "high_s": estimate.high_s,
-            "runs": estimate.runs, "basis": estimate.basis}
+            "runs": estimate.runs, "basis": estimate.basis, "updates": estimate.updates}
 
 
 def as_json(progress: Progress) -> dict:
@@ -344,7 +409,8 @@ def as_json(progress: Progress) -> dict:
     return {
         "submission_id": s.id, "status": progress.status, "phase": progress.phase, "finished": progress.finished,
         "report_url": f"/submissions/{s.id}", "counts": progress.counts,
-        "ahead_s": progress.ahead_s, "ahead_unmeasured": progress.ahead_unmeasured, "own_s": progress.own_s,
+        "ahead_s": progress.ahead_s, "ahead_unmeasured": progress.ahead_unmeasured,
+        "ahead_never_measured": progress.ahead_never_measured, "own_s": progress.own_s,
         "running_on_backend": progress.running_on_backend,
         "running_ahead": [{"kind": r.kind, "backend": r.backend, "running_s": r.running_s,
                            "remaining_s": r.remaining_s, "estimate": _estimate_json(r.estimate)}

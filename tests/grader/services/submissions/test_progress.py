@@ -213,3 +213,26 @@ def test_only_who_may_read_the_submission_sees_its_progress(api):
     assert api.client.get("/submissions/999999/progress.json", headers=api.as_("alice")).status_code == 404
     anonymous = api.client.get(f"/submissions/{sid}/progress", follow_redirects=False)
     assert anonymous.status_code == 303 and anonymous.headers["location"].startswith("/sign-in")
+
+
+def test_a_config_never_measured_is_estimated_from_its_size_within_a_factor_of_two_of_its_measured_time(
+        api, measured, lesson_measured):
+    """Issue 49: a config never measured was estimated from the median of its kind's runs, whatever its size (a
+    37,500-update config said "about 0.3 s left" and took 120 s). Now from its internal updates at the time per update
+    of its kind's measured runs, on real Genesis times: the lesson's contact runs N1-N4 are stored (lesson_measured),
+    alice's sheet asks for its extension (the lesson's N5 physics: dt 0.01 s at 4 substeps, 600 internal updates, 4x
+    N1's), which nothing stored measured; its estimate is within a factor of 2 of what N5 took, measured in the same
+    warm process as N1-N4, and the page says what it rests on."""
+    mine = submit(api, "alice")
+    with new_session() as session:
+        p = progress.submission_progress(session=session, user=_user(session, "alice"), submission_id=mine)
+    extension = next(r for r in p.runs if r.name == "sheet.extension")
+    estimate = extension.estimate
+    assert estimate is not None and estimate.basis == "size" and estimate.updates == 600, estimate
+    took = measured["N5"].wall_s
+    assert took / 2 <= estimate.median_s <= took * 2, (estimate, took, {n: measured[n].wall_s for n in measured})
+    assert estimate.low_s <= estimate.median_s <= estimate.high_s and estimate.runs >= 1
+    page = api.client.get(f"/submissions/{mine}/progress", headers=api.as_("alice")).text
+    row = page.split('id="run-sheet.extension"', 1)[1].split("</tr>", 1)[0]
+    assert "never measured: its 600 internal updates at the" in row and "time per update of" in row, row
+    assert progress.as_json(p)["runs"][[r.name for r in p.runs].index("sheet.extension")]["estimate"]["updates"] == 600
