@@ -2,9 +2,10 @@
 
 Staff (instructors and auditors of the course) see everything. A student sees an item's score and feedback at once
 (immediate), from the due date that applies to them (after_due: their extension's where granted) or once the
-assignment is released (on_release). A submission outside any assignment (a free one) withholds whatever an
-assignment of its course for the lesson still withholds from that student, open or not yet open: the same sheet sent
-without `assignment_id` must not tell what the assignment keeps back. A withheld item keeps its question, points and
+assignment is released (on_release). Every submission of the lesson, to an assignment or outside any (a free one),
+withholds whatever an assignment of its course for the lesson still withholds from that student, open or not yet
+open: the same sheet sent to another assignment, or without `assignment_id`, must not tell what an assignment keeps
+back. A withheld item keeps its question, points and
 the student's own prediction; its score, verdict, evidence and feedback are not shown, the totals count the shown
 items only, and the lab check waits until nothing is withheld.
 
@@ -69,11 +70,11 @@ def visibility_of(assignment: Assignment, item_id: str) -> str:
 
 def withheld_items(*, session: Session, submission: Submission, user: User, now: datetime) -> dict[str, str]:
     """{item id: why `user` may not see its score and feedback yet}; empty for staff of the submission's course.
-    A free submission's items are withheld while any assignment of the course for its lesson withholds them."""
+    A submission's items are withheld while any assignment of the course for its lesson withholds them from its
+    student, its own assignment or another (issue 44: a practice assignment showing C1-C8 at once told what an exam
+    withholding them until release keeps back), free submissions alike."""
     if access.is_staff(user) and user.course_id == submission.course_id:
         return {}
-    if submission.assignment is not None:
-        return _withheld_by(session, submission.assignment, submission.student, now)
     ids = set(item_ids(submission.lesson, submission.part))
     hidden: dict[str, str] = {}
     for assignment in session.scalars(select(Assignment).where(

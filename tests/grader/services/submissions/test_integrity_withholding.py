@@ -95,6 +95,25 @@ def test_a_free_submission_is_withheld_whole_while_a_sheet_assignment_withholds_
     assert grade_of(api, sid, "prof").status_code == 200
 
 
+def test_an_assignment_submission_withholds_what_another_assignment_of_the_lesson_withholds(api, measured):
+    """Issue 44 (hostile pass 2): an exam withholds C1-C8 until released; a practice assignment of the same
+    checkpoints shows them at once. Alice's practice attempt answered 200 with every verdict and the conceptual items'
+    expected answers: the exam's, a click away. Now it withholds them as the exam does, until the exam is released."""
+    exam = create(api, title="Exam", visibility="on_release").json()["id"]
+    practice = create(api, title="Practice").json()["id"]  # immediate
+    sid = submit(api, practice).json()["id"]
+    assert submit(api, exam).status_code == 202
+    grade = grade_of(api, sid, "alice")
+    assert grade.status_code == 409 and "once “Exam” is released" in grade.json()["detail"], grade.text
+    text = api.client.get(f"/submissions/{sid}", headers=api.as_("alice")).text
+    assert "unequal_simulated_duration" not in text and 'id="total"' not in text
+    staff = grade_of(api, sid, "prof").json()
+    assert staff["items"][0]["verdict"] != "pending"
+    assert api.client.post(f"/v1/assignments/{exam}/release", headers=api.as_("prof")).status_code == 200
+    shown = grade_of(api, sid, "alice")
+    assert shown.status_code == 200 and shown.json()["items"] == staff["items"]
+
+
 def test_only_assignments_of_the_students_own_course_that_still_withhold_count(api, measured):
     # Another course's assignment withholds nothing here; one whose due date has passed shows its items.
     assert create(api, who="eve", course="other", visibility="on_release").status_code == 201
