@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import functools
 
-from . import cases, check, scoring
+from . import cases, check, scoring, specs
 from .lesson import Lesson
 from .rubrics import LESSONS_DIR, load_rubric
 from .specs import ContactCase, FrictionCase
@@ -22,6 +22,15 @@ def runs_read(item_id: str, runs) -> list[str]:
     """The runs of `runs` whose measurements could tell L03 item `item_id`'s answer (rubric.scoring.runs_read), by
     the latest rubric version: an item's rule and kind are the same in every version still graded."""
     return scoring.runs_read(_latest_rubric(), item_id, runs)
+
+
+def physics_key(kind: str, spec) -> str | None:
+    """The physics an L03 case integrates (rubric.specs.physics_key) from a stored spec; None for an invalid one."""
+    model = {"contact": ContactCase, "friction": FrictionCase}.get(kind)
+    try:
+        return None if model is None else specs.physics_key(model.model_validate(spec))
+    except ValueError:
+        return None
 
 
 LESSON = Lesson(
@@ -40,5 +49,6 @@ LESSON = Lesson(
     evaluate_check=check.evaluate,
     verdict_line=check.verdict_line,
     runs_read=runs_read,
+    physics_key=physics_key,
     archived_versions=("1",),
 )

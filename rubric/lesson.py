@@ -18,6 +18,7 @@ distribution. The declaration says everything a lesson owns:
                       how a sheet is graded on measured runs, which runs a sheet needs, the lab check on measured
                       runs (`<NAME> CHECK: PASSED` and its conditions)
   runs_read           which of a submission's runs could tell an item's answer (withheld with the item)
+  physics_key         what a case's runs measure, however sampled or labelled: runs of one key tell the same
 
 Pure: this module imports nothing of the service; `lesson("L03")` imports the lesson's declaring module only.
 Step 2 of issue 45: L03 is declared here and `grader lesson check` reads the declaration; the service's other layers
@@ -62,6 +63,9 @@ class Lesson:
     # (item id, a submission's run names) -> the runs whose measurements could tell that item's answer: what is
     # withheld with the item, in every submission of the student (grader.services.submissions.visibility)
     runs_read: Callable[[str, Sequence[str]], list[str]]
+    # (case kind, a stored spec) -> the physics it integrates however sampled, labelled or run (None: not a valid
+    # spec): runs of one key measure the same, and are withheld together (grader.services.submissions.visibility)
+    physics_key: Callable[[str, Mapping[str, Any]], str | None]
     languages: Sequence[str] = (SOURCE_LANGUAGE,)
     # Rubric versions kept readable for the grades stored under them but never used to grade again: their items may
     # name rules the lesson no longer has.

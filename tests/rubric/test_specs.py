@@ -103,3 +103,24 @@ def test_step_count_rule_applies_to_the_default_duration():
     # Only dt given: 1.5 s / 0.013 s is not an integer number of steps, even though duration was not written.
     errors = errors_for(dt=0.013)
     assert any(e.startswith("duration:") and "not an integer number of outer steps" in e for e in errors), errors
+
+
+def test_the_physics_key_is_what_a_case_integrates_however_it_is_sampled_labelled_or_run():
+    """rubric.specs.physics_key (issue 44): runs of one key measure the same trajectories at every shared time."""
+    from rubric.cases import BASELINE_CASES as cases
+    from rubric.specs import physics_key
+
+    def key(case, **change):
+        return physics_key(cases[case].model_copy(update=change))
+
+    assert key("N1") == key("N4") and key("N1") != key("N2") != key("N3")  # internal step 0.01 / 0.005 / 0.02
+    assert key("N5", dt=0.02, substeps=4) == key("N2")  # an extension integrating at N2's step
+    assert key("N2", name="mine", precision="64", backend="gpu", seed=7, duration=0.5, render=True) == key("N2")
+    assert key("N2", cube=cases["N2"].cube.model_copy(update={"color": (0.0, 0.0, 1.0)})) == key("N2")
+    assert key("N2", cube=cases["N2"].cube.model_copy(update={"rho": 800.0})) != key("N2")
+    assert key("friction-baseline") == key("friction-baseline-colors-swapped") != key("friction-table-0.30")
+    # settling is part of the physics: as many internal updates of settling at the same internal step are the same
+    base = cases["friction-baseline"]
+    assert key("friction-baseline", substeps=base.substeps * 2, dt=base.dt * 2,
+               settle_steps=base.settle_steps // 2) == key("friction-baseline")
+    assert key("friction-baseline", settle_steps=base.settle_steps + 1) != key("friction-baseline")

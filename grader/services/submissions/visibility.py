@@ -238,14 +238,18 @@ def _arrays_digest(session: Session, row: int, stored_at: datetime) -> str | Non
 
 def measurement_twins(runs: Sequence[CaseRun]) -> dict[str, list[str]]:
     """{run name: the other runs of `runs` that measured the same}, for the runs that have any: one content key,
-    measurement or evidence row (a reused run reads its source's), equal metrics but for the case's name, or arrays
-    equal bit for bit; closed under "the same as" (a run alike to a twin is one too). Arrays are read only where two
+    measurement or evidence row (a reused run reads its source's), equal metrics but for the case's name, arrays
+    equal bit for bit, or one physics however sampled, labelled or run (the lesson's `physics_key`: a student's
+    extension at dt 0.02 with 4 substeps measured N2 bit for bit at every other sample, and told A2's withheld N2
+    proxy); closed under "the same as" (a run alike to a twin is one too). Arrays are read only where two
     runs' stored .npz have one size, and digested once per process (`_arrays_digest`)."""
     finished = {r.name: r.reused_from_id or r.id for r in runs if r.status in TERMINAL}  # its evidence row
+    declared = lesson(runs[0].submission.lesson) if runs else None
     groups: dict[tuple, set[str]] = {}
     for run in runs:
         marks = [("key", run.content_key), ("measurement", run.measurement_id), ("evidence", finished.get(run.name)),
-                 ("metrics", json.dumps(_without_names(run.metrics), sort_keys=True) if run.metrics else None)]
+                 ("metrics", json.dumps(_without_names(run.metrics), sort_keys=True) if run.metrics else None),
+                 ("physics", declared.physics_key(run.kind, run.spec) if declared else None)]
         for mark in marks:
             if mark[1] is not None:
                 groups.setdefault(mark, set()).add(run.name)

@@ -232,6 +232,22 @@ def test_a_withheld_item_no_measurement_decided_still_withholds_the_runs_it_asks
     _withheld_everywhere(api, sid, FRICTION_RUNS, "B3, shown once")
 
 
+def test_a_config_of_a_withheld_runs_physics_sampled_otherwise_is_withheld_with_it(api, measured):
+    """Issue 44 (hostile pass 2, F1): with A2 withheld (N1-N4), alice's extension at dt 0.02 with 4 substeps (the one
+    factor it may change) integrates at N2's internal step of 0.005 s: run on Genesis, its arrays were N2's at every
+    other sample, bit for bit, and its metrics.json answered 200 with N2's withheld penetration proxy. It is withheld
+    as what it measured: N2's physics (the lesson's physics_key), whatever its sampling and name."""
+    sheet = reference_sheet()
+    sheet["configs"]["extension"] |= {"dt": 0.02, "substeps": 4}
+    create(api, part="exercises", item_visibility={"A2": "on_release"})
+    sid = free_graded(api, measured, complete=True, sheet=sheet)
+    refused = _get(api, f"/v1/submissions/{sid}/case-runs/sheet.extension/files/metrics.json")
+    assert refused.status_code == 409, refused.text
+    assert "measured the same as N2, which decides A2" in refused.json()["detail"], refused.text
+    assert "sheet.extension" in grade_of(api, sid, "alice").json()["withheld_measurements"]
+    assert _get(api, f"/v1/submissions/{sid}/case-runs/sheet.extension/files/metrics.json", "prof").status_code == 200
+
+
 def test_runs_measured_alike_by_key_by_evidence_by_metrics_or_by_arrays_are_twins(api, measured):
     """Which of a submission's runs measured the same (grader.services.submissions.visibility.measurement_twins), on
     its stored runs: one content key, one evidence row (a reused run), metrics equal but for the case's name, or arrays
