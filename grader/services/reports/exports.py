@@ -91,16 +91,29 @@ def counted_grades_csv(*, session: Session, assignment: Assignment) -> tuple[str
     return f"{assignment.course.name}-assignment-{assignment.id}-grades.csv", csv_text(rows)
 
 
+# Gradescope's visibilities, least withholding first: an item takes the most withholding of the lesson's assignments.
+_GRADESCOPE_ORDER = ("visible", "after_due_date", "after_published")
+
+
 def gradescope(*, session: Session, submission: Submission) -> dict:
-    """Gradescope results.json of one graded submission; each item's visibility is its assignment's for that item
-    (immediate: visible, after_due: after_due_date, on_release: after_published). Conflict while not graded."""
+    """Gradescope results.json of one graded submission; each item's visibility is the most withholding that an
+    assignment of the course for its lesson gives that item (immediate: visible, after_due: after_due_date,
+    on_release: after_published), its own assignment or another, as the service withholds it from the student
+    (grader.services.submissions.visibility); an item no assignment holds is visible. Conflict while not graded."""
 
     grade = current_grade(session, submission.id)
     if grade is None:
         raise Conflict(f"submission {submission.id} is {submission.status}, not graded")
     report = _report(grade)
-    shown = ({i.id: assignments.GRADESCOPE_VISIBILITY[visibility_of(submission.assignment, i.id)]
-              for i in report.items} if submission.assignment is not None else {})
+    ids = {i.id for i in report.items}
+    shown: dict[str, str] = {}
+    for assignment in session.scalars(select(Assignment).where(Assignment.course_id == submission.course_id,
+                                                               Assignment.lesson == submission.lesson)):
+        for item in ids & set(assignments.item_ids(assignment.lesson, assignment.part)):
+            seen = assignments.GRADESCOPE_VISIBILITY[visibility_of(assignment, item)]
+            if _GRADESCOPE_ORDER.index(seen) > _GRADESCOPE_ORDER.index(shown.get(item, "visible")):
+                shown[item] = seen
+            shown.setdefault(item, seen)
     results = gradescope_results(report, grade.execution_s, shown)
     overridden = {i["id"]: i for i in _overridden(grade)}
     for test in results["tests"]:

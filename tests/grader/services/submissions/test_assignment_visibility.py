@@ -74,6 +74,17 @@ def test_the_gradescope_export_carries_each_items_visibility(api):
                      "C5": "after_due_date", "C6": "after_due_date", "C7": "after_due_date", "C8": "after_due_date"}
 
 
+def test_the_gradescope_export_takes_the_most_withholding_assignment_of_the_lesson(api):
+    """Issue 44 (hostile pass 2, F3): a practice attempt's export marked C1-C8 visible while an exam of the same
+    checkpoints withholds them until released; Gradescope would have shown them."""
+    create(api, title="Exam", visibility="on_release", item_visibility={"C2": "after_due"})
+    practice = create(api, title="Practice").json()["id"]
+    sid = submit(api, practice).json()["id"]
+    results = api.client.get(f"/v1/submissions/{sid}/gradescope.json", headers=api.as_("prof")).json()
+    shown = {t["name"].split(":")[0]: t["visibility"] for t in results["tests"]}
+    assert shown == {f"C{n}": "after_due_date" if n == 2 else "after_published" for n in range(1, 9)}
+
+
 def test_gradescope_visibility_outside_gradescopes_words_is_refused():
     from rubric import gradescope_results
     from rubric.scoring import GradeReport
