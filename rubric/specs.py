@@ -9,6 +9,7 @@ from __future__ import annotations
 import functools
 import json
 import math
+import struct
 import re
 from typing import Annotated, Any, Literal, Union
 
@@ -353,14 +354,27 @@ _NOT_PHYSICS = {"name", "render", "backend", "precision", "seed", "dt", "substep
                 "separation_tolerance", "upward_speed_tolerance", "tail_window", "stop_speed", "hold", "settle_steps"}
 
 
+def _single(value: Any) -> Any:
+    """A float as single precision holds it (the engine's 32-bit fields: 0.5000000001 is 0.5 there), other values as
+    they are. A 64-bit run is then grouped with runs a little apart from it: more is withheld, never less."""
+    if isinstance(value, float):
+        try:
+            return float(struct.unpack("f", struct.pack("f", value))[0])
+        except OverflowError:  # past single precision's range: no 32-bit field holds it, kept as it is
+            return value
+    if isinstance(value, list):
+        return [_single(v) for v in value]
+    return value
+
+
 def physics_key(spec: ContactCase | FrictionCase) -> str:
     """The physics a case integrates, however it is sampled, labelled or run: two cases with one key measure the same
     trajectories at every shared time, as the colour-swapped control measures the baseline bit for bit and an
     extension at dt 0.02 with 4 substeps measures N2 (dt 0.01, 2 substeps) at every other sample. What the service
     withholds with a withheld run is every run of the same physics (grader.services.submissions.visibility)."""
-    fields = {k: v for k, v in _flatten(spec.model_dump(mode="json", exclude_computed_fields=True)).items()
+    fields = {k: _single(v) for k, v in _flatten(spec.model_dump(mode="json", exclude_computed_fields=True)).items()
               if k not in _NOT_PHYSICS and not VISUAL_FIELD.match(k) and not _LANE_NAME.match(k)}
-    fields["substep_dt"] = float(f"{spec.dt / spec.substeps:.12g}")
+    fields["substep_dt"] = _single(_single(spec.dt) / spec.substeps)
     if isinstance(spec, FrictionCase):
         fields["settle_updates"] = spec.settle_steps * spec.substeps
     return json.dumps(fields, sort_keys=True, separators=(",", ":"))

@@ -118,6 +118,11 @@ def test_the_physics_key_is_what_a_case_integrates_however_it_is_sampled_labelle
     assert key("N2", name="mine", precision="64", backend="gpu", seed=7, duration=0.5, render=True) == key("N2")
     assert key("N2", cube=cases["N2"].cube.model_copy(update={"color": (0.0, 0.0, 1.0)})) == key("N2")
     assert key("N2", cube=cases["N2"].cube.model_copy(update={"rho": 800.0})) != key("N2")
+    # below single precision's resolution the engine integrates the same (hostile pass 3): the same physics
+    assert key("N5", dt=0.0100000000001, substeps=2) == key("N2")
+    table = cases["friction-baseline"].table
+    assert key("friction-baseline", table=table.model_copy(update={"friction": 0.5000000001})) == key("friction-baseline")
+    assert key("friction-baseline", table=table.model_copy(update={"friction": 0.51})) != key("friction-baseline")
     assert key("friction-baseline") == key("friction-baseline-colors-swapped") != key("friction-table-0.30")
     # settling is part of the physics: as many internal updates of settling at the same internal step are the same
     base = cases["friction-baseline"]

@@ -211,8 +211,11 @@ DIGESTS_CACHED = 1024
 
 
 def _arrays_digest(session: Session, row: int, stored_at: datetime) -> str | None:
-    """sha256 of the arrays an evidence row's .npz holds (each array's name, dtype, shape and bytes, by name), not
-    of the archive's bytes, which also hold each entry's time; None for a row without arrays."""
+    """sha256 of what an evidence row's .npz measured: each sampled array's name, dtype, shape and bytes, by name,
+    leaving out the time axis `t` and the 0-d arrays (the scalars a run records of its inputs, such as the friction
+    the engine held). A config nudged below float32's resolution (table friction 0.5000000001) integrates bit for bit
+    as the baseline, with its own `t` and input scalars: the same measurement. Not the archive's bytes, which also
+    hold each entry's time. None for a row without arrays."""
     with _DIGESTS_LOCK:
         if (found := _DIGESTS.get((row, stored_at))) is not None:
             _DIGESTS.move_to_end((row, stored_at))
@@ -225,6 +228,8 @@ def _arrays_digest(session: Session, row: int, stored_at: datetime) -> str | Non
         with np.load(io.BytesIO(blob), allow_pickle=False) as arrays:
             for name in sorted(arrays.files):
                 array = arrays[name]
+                if name == "t" or array.ndim == 0:
+                    continue
                 digest.update(f"{name}\0{array.dtype.str}\0{array.shape}\0".encode())
                 digest.update(np.ascontiguousarray(array).tobytes())
     except (ValueError, OSError, zipfile.BadZipFile):  # not arrays a case process writes: alike to nothing

@@ -288,6 +288,55 @@ def test_runs_measured_alike_by_key_by_evidence_by_metrics_or_by_arrays_are_twin
             "friction-table-0.30": ["sheet.table_exercise"], "sheet.table_exercise": ["friction-table-0.30"]}
 
 
+def test_arrays_equal_but_for_the_time_axis_and_the_recorded_inputs_are_twins(api, measured, monkeypatch):
+    """Issue 44 (hostile pass 3): a table exercise at friction 0.5000000001 integrated bit for bit as the baseline
+    (single precision holds 0.5), with its own time axis and its own record of the friction it was given: its
+    metrics.json answered B2. The arrays' mark reads what was sampled, not `t` nor the 0-d input scalars; one sampled
+    value one ulp apart is no twin. (The lesson's physics_key, which also groups these, is turned off here.)"""
+    import dataclasses
+    import io
+
+    import numpy as np
+
+    from grader.core.db import new_session
+    from grader.core.models import CaseEvidence, Submission, utcnow
+    from grader.services.submissions import visibility
+    from tests.grader.core.test_grade_then_complete import _submission_ready_to_grade
+
+    declared = visibility.lesson
+    monkeypatch.setattr(visibility, "lesson",
+                        lambda name: dataclasses.replace(declared(name), physics_key=lambda kind, spec: None))
+    sid = _submission_ready_to_grade(api, measured)
+
+    def store(session, run, change) -> None:
+        evidence = session.get(CaseEvidence, run.id)
+        arrays = dict(np.load(io.BytesIO(evidence.arrays)))
+        change(arrays)
+        buffer = io.BytesIO()
+        np.savez(buffer, **arrays)
+        evidence.arrays, evidence.stored_at = buffer.getvalue(), utcnow()
+        session.commit()
+
+    def nudged(arrays):
+        arrays["t"] = arrays["t"] + 1e-12
+        for name in [n for n in arrays if arrays[n].ndim == 0]:
+            arrays[name] = arrays[name] + 1e-10  # "the friction the engine held", as the nudged config records it
+
+    with new_session() as session:
+        runs = {r.name: r for r in session.get(Submission, sid).case_runs}
+        swapped = runs["friction-baseline-colors-swapped"]
+        swapped.metrics = swapped.metrics | {"note": "not the baseline's metrics"}
+        store(session, swapped, nudged)
+        assert "friction-baseline-colors-swapped" in visibility.measurement_twins(
+            session.get(Submission, sid).case_runs).get("friction-baseline", [])
+        sampled = next(n for n, a in np.load(io.BytesIO(session.get(CaseEvidence, swapped.id).arrays)).items()
+                       if n != "t" and a.ndim == 1 and a.dtype.kind == "f")
+        store(session, swapped, lambda arrays: arrays.__setitem__(sampled, np.concatenate(
+            [arrays[sampled][:-1], np.nextafter(arrays[sampled][-1:], np.inf)])))
+        assert "friction-baseline-colors-swapped" not in visibility.measurement_twins(
+            session.get(Submission, sid).case_runs).get("friction-baseline", [])
+
+
 def test_a_report_whose_withheld_item_carries_an_override_does_not_say_every_score_is_measured(api, measured):
     aid, sid, _ = _a2_withheld(api, measured)
     made = api.client.post(f"/v1/submissions/{sid}/overrides", headers=api.as_("prof"),
