@@ -139,9 +139,9 @@ PATTERNS: list[tuple[re.Pattern, str]] = [
     (re.compile(r"^assignment (?P<id>[0-9]+) closed at (?P<at>\S+(?: \(\S+\))?) \(your extension's hard close\); "
                 r"it is (?P<now>\S+(?: \(\S+\))?)$"),
      N_("assignment %(id)s closed at %(at)s (your extension's hard close); it is %(now)s")),
-    (re.compile(r"^assignment (?P<id>[0-9]+) allows (?P<n>[0-9]+) attempts; (?P<used>[0-9]+) already submitted$"),
+    (re.compile(r"^assignment (?P<id>[0-9]+) allows (?P<n>[0-9]+) attempts?; (?P<used>[0-9]+) already submitted$"),
      N_("assignment %(id)s allows %(n)s attempts; %(used)s already submitted")),
-    (re.compile(r"^assignment (?P<id>[0-9]+) allows (?P<n>[0-9]+) submissions per hour; (?P<k>[0-9]+) in the last "
+    (re.compile(r"^assignment (?P<id>[0-9]+) allows (?P<n>[0-9]+) submissions? per hour; (?P<k>[0-9]+) in the last "
                 r"hour, the next is allowed at (?P<at>\S+(?: \(\S+\))?)$"),
      N_("assignment %(id)s allows %(n)s submissions per hour; %(k)s in the last hour, the next is allowed at %(at)s")),
     # grader.services.identity.sign_in_links.refusal

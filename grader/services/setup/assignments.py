@@ -92,7 +92,7 @@ def admit(*, session: Session, assignment: Assignment, student: User, now: datet
                       facts=facts | {"at": dates.hard_close_at})
     used = attempts_used(session=session, assignment=assignment, student=student)
     if assignment.max_attempts is not None and used >= assignment.max_attempts:
-        raise Refused("assignment_id", f"assignment {assignment.id} allows {assignment.max_attempts} attempts; "
+        raise Refused("assignment_id", f"assignment {assignment.id} allows {assignment.max_attempts} attempt{'' if assignment.max_attempts == 1 else 's'}; "
                                        f"{used} already submitted", reason="attempts",
                       facts=facts | {"allowed": assignment.max_attempts, "used": used})
     if assignment.max_per_hour is not None:
@@ -102,7 +102,7 @@ def admit(*, session: Session, assignment: Assignment, student: User, now: datet
             next_at = recent[len(recent) - assignment.max_per_hour] + HOUR
             next_at = next_at.replace(microsecond=0) + timedelta(seconds=1 if next_at.microsecond else 0)
             raise Refused("assignment_id", (
-                f"assignment {assignment.id} allows {assignment.max_per_hour} submissions per hour; "
+                f"assignment {assignment.id} allows {assignment.max_per_hour} submission{'' if assignment.max_per_hour == 1 else 's'} per hour; "
                 f"{len(recent)} in the last hour, the next is allowed at {iso(next_at, tz)}"),
                 retry_after_s=max(1, math.ceil((next_at - now).total_seconds())), reason="per_hour",
                 facts=facts | {"allowed": assignment.max_per_hour, "used": len(recent), "at": next_at})

@@ -182,8 +182,9 @@ def generate(*, session: Session, assignment: Assignment, user: User, seed: int,
         taken = session.scalar(select(func.count()).select_from(StudentVariant)
                                .where(StudentVariant.assignment_id == assignment.id))
         raise Conflict("the assignment has a pool", [{"field": "assignment", "rule": (
-            f"assignment {assignment.id} has a pool already (seed {existing.seed}, {existing.k} variants"
-            + (f", {taken} students on them" if taken else "") + "); an assignment keeps one pool")}],
+            f"assignment {assignment.id} has a pool already (seed {existing.seed}, {existing.k} variant"
+            + ("" if existing.k == 1 else "s") + (f", {taken} student{'' if taken == 1 else 's'} on them" if taken else "")
+            + "); an assignment keeps one pool")}],
                        reason="pool_exists", facts={"assignment": assignment.title, "seed": existing.seed,
                                                     "k": existing.k, "students": taken})
     book, space = _space_for(session, assignment)

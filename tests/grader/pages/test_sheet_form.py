@@ -3,6 +3,8 @@ field, drafts on the server, YAML in and out, the API's own messages beside each
 
 from __future__ import annotations
 
+import re
+
 import html
 from html.parser import HTMLParser
 
@@ -324,10 +326,10 @@ def test_the_config_editor_shows_the_fields_the_lesson_lets_change_and_holds_the
     assert '<label for="f-configs.table_exercise.table.friction">table friction</label>' in free
     assert 'name="configs.table_exercise.table.friction" value="0.5" data-baseline="0.5">' in free
     assert "baseline 0.5" in free and "the hands-on exercise changes only table friction" in section
-    assert free.count("<input") == 1
+    assert free.split('id="labels-table_exercise"')[0].count("<input") == 1  # the name and colours follow, apart
     # Every other field is held fixed: read-only, in words with units, choices as selects, behind a button.
     assert 'name="configs.table_exercise.dt" value="0.01" readonly' in held
-    assert 'gravity z <span class="unit">(m/s²)</span>' in held and "lane 1 colour, red" in held
+    assert 'gravity z <span class="unit">(m/s²)</span>' in held and "lane 1 colour, red" not in held
     assert "lane 2 cube friction" in held and "gravity.2" not in held.replace("gravity.2\"", "")
     assert '<select id="f-configs.table_exercise.precision" disabled' in held
     assert '<input type="hidden" name="configs.table_exercise.precision" value="32"' in held
@@ -341,6 +343,28 @@ def test_the_config_editor_shows_the_fields_the_lesson_lets_change_and_holds_the
                                data={**form_fields(page), "action": "unlock:table_exercise"})
     held = unlocked.text.split('id="held-table_exercise" open>', 1)[1].split("</details>", 1)[0]
     assert "readonly" not in held and 'name="configs.table_exercise.precision"' in held
+
+
+def test_the_name_and_colours_are_edited_freely_and_not_counted_as_held(api):
+    """Issue 49: "Held fixed: 35 fields" counted the config's name and its colours, which the one-factor rule never
+    counts, and renaming a config meant unlocking the held fields. They are their own group, editable, outside the
+    lock; the held count is what the rule holds."""
+    page = api.client.get("/sheet", headers=api.as_("alice")).text
+    section = page.split('id="config-table_exercise"', 1)[1].split("</section>", 1)[0]
+    before_held, held = section.split('<details class="held" id="held-table_exercise">', 1)
+    labels = before_held.split('id="labels-table_exercise"', 1)[1]
+    assert 'name="configs.table_exercise.name"' in labels and "lane 1 colour, red" in labels
+    assert "readonly" not in labels and "disabled" not in labels and "data-held=" not in labels
+    assert 'name="configs.table_exercise.name"' not in held and "colour" not in held
+    count = int(re.search(r"Held fixed: (\d+) fields as in", held).group(1))
+    assert count == held.count('data-held="table_exercise"') and count > 0
+    # Renamed and recoloured, with the held fields still locked: one factor, as Check says.
+    fields = form_fields(page) | {"configs.table_exercise.name": "my-table",
+                                  "configs.table_exercise.lanes.0.color.0": "0.2"}
+    checked = api.client.post("/sheet", headers=api.as_("alice"), data={**fields, "action": "check"})
+    assert checked.status_code == 200, checked.text
+    verdict = checked.text.split('id="check-table_exercise"', 1)[1].split("</h3>", 1)[0]
+    assert "verdict-ok" in verdict and "one-factor violation" not in verdict
 
 
 def test_a_held_field_the_draft_changed_is_shown_open_with_what_it_voids(api):
