@@ -35,6 +35,10 @@ a deciding run is withheld with it (`measurement_twins`): the same content key, 
 run), the same metrics but for the case's name, or bit-identical arrays. The colour-swapped control measures exactly
 the baseline, and a sheet's table exercise at 0.30 exactly the lesson's friction-table-0.30; either would otherwise
 answer a withheld item about the other under its own name.
+
+A student's own configs go further: one can be built to measure what a withheld lesson run measured in more ways
+than any rule over inputs or outputs lists (a nudged input, a shifted scene, another lane order). While a run of a
+case kind is withheld, every config of the student's of that kind is withheld with it (`withheld_runs`' `configs`).
 """
 
 from __future__ import annotations
@@ -162,13 +166,17 @@ def deciding_runs(item: dict, runs: list[str]) -> list[str]:
 
 def withheld_runs(report: dict | None, hidden: dict[str, str], runs: list[str],
                   twins: Mapping[str, Collection[str]] | None = None,
-                  asked: Mapping[str, tuple[str, Collection[str]]] | None = None) -> dict[str, str]:
+                  asked: Mapping[str, tuple[str, Collection[str]]] | None = None,
+                  configs: Mapping[str, str] | None = None, kinds: Mapping[str, str] | None = None) -> dict[str, str]:
     """{case run name: why its measurements are withheld}: the runs deciding any withheld item of `report` (the
     stored grade's), the runs that could tell the answer of any item of `asked` ({item id: (why it is withheld, those
     runs)}: every item of the lesson withheld from the student, `lesson_withheld` and `runs_answering`), each with the
     items it decides and when they are shown, and each run of `twins` ({run: the runs that measured the same},
-    `measurement_twins`) of such a run, which would tell the same. Without a report (not graded yet) every run is
-    withheld while any item of the submission is: nothing yet says which run decided which item."""
+    `measurement_twins`) of such a run, which would tell the same; and each of the student's own configs (`configs`:
+    {run name: its case kind}) of the kind of a withheld run (`kinds`: {run name: kind}), which the student could
+    have built to measure what that run measured (a shifted scene, another lane order, a nudged input: no rule over
+    inputs or outputs tells every such config apart). Without a report (not graded yet) every run is withheld while
+    any item of the submission is: nothing yet says which run decided which item."""
     asked = asked or {}
     if not hidden and not asked:
         return {}
@@ -190,6 +198,10 @@ def withheld_runs(report: dict | None, hidden: dict[str, str], runs: list[str],
     for run in list(out):  # sorted: a twin of two deciding runs is named after the first
         for twin in sorted((twins or {}).get(run, ())):
             out.setdefault(twin, f"measured the same as {run}, which {out[run]}")
+    for config, kind in sorted((configs or {}).items()):
+        like = next((run for run in sorted(out) if (kinds or {}).get(run) == kind and run != config), None)
+        if like is not None and config not in out:
+            out[config] = f"is your own {kind} config, which could measure what {like} measured; {like} {out[like]}"
     return out
 
 
@@ -293,14 +305,16 @@ def _evidence_withheld(item: dict, runs: dict[str, str]) -> dict:
 
 def shown_report(report: dict, hidden: dict[str, str], runs: list[str] | None = None,
                  twins: Mapping[str, Collection[str]] | None = None,
-                 asked: Mapping[str, tuple[str, Collection[str]]] | None = None) -> dict:
+                 asked: Mapping[str, tuple[str, Collection[str]]] | None = None,
+                 configs: Mapping[str, str] | None = None, kinds: Mapping[str, str] | None = None) -> dict:
     """The stored report as a student may see it: each withheld item keeps its question, points and the student's
     own prediction, but its score is None and its feedback says when it will be shown; the total counts the shown
     items only and `pending` says which points are still to come. The lab check (its conditions' evidence is
     measured against the same tolerances) is left out until nothing is withheld. Nothing is regraded on release.
     `twins`: the runs that measured the same as each run (`measurement_twins`), withheld with a deciding one; `asked`:
     the lesson's items withheld from the student and the runs that could answer them (`withheld_runs`)."""
-    withheld = withheld_runs(report, hidden, runs if runs is not None else _read_runs(report), twins, asked)
+    withheld = withheld_runs(report, hidden, runs if runs is not None else _read_runs(report), twins, asked, configs,
+                             kinds)
     if not hidden and not withheld:
         return report
     items, total, shown_max, pending_points = [], 0.0, 0.0, 0.0
@@ -373,7 +387,8 @@ class GradeView:
             return None
         if not self.hidden and not self.lesson_hidden:
             return self.stored.report
-        return shown_report(self.stored.report, self.hidden, self.run_names, self.twins, self.asked)
+        return shown_report(self.stored.report, self.hidden, self.run_names, self.twins, self.asked, self.configs,
+                            self.kinds)
 
     @cached_property
     def asked(self) -> dict[str, tuple[str, list[str]]]:
@@ -387,6 +402,16 @@ class GradeView:
     @property
     def run_names(self) -> list[str]:
         return [r.name for r in self.submission.case_runs]
+
+    @property
+    def kinds(self) -> dict[str, str]:
+        return {r.name: r.kind for r in self.submission.case_runs}
+
+    @cached_property
+    def configs(self) -> dict[str, str]:
+        """{run name: case kind} of the student's own configs: the runs that are none of the lesson's cases."""
+        lesson_cases = lesson(self.submission.lesson).cases
+        return {r.name: r.kind for r in self.submission.case_runs if r.name not in lesson_cases}
 
     @cached_property
     def twins(self) -> dict[str, list[str]]:
@@ -403,7 +428,7 @@ class GradeView:
         if not self.hidden and not self.lesson_hidden:
             return {}
         return withheld_runs(self.stored.report if self.stored is not None else None, self.hidden, self.run_names,
-                             self.twins, self.asked)
+                             self.twins, self.asked, self.configs, self.kinds)
 
     @property
     def total(self) -> float | None:

@@ -33,9 +33,11 @@ def _get(api, path, who="alice", **headers):
 def test_the_runs_deciding_a_withheld_item_are_withheld_on_every_surface_until_release(api, measured):
     aid, sid, staff = _a2_withheld(api, measured)
     deciding = set(staff["A2"]["backends"])  # the runs A2's scoring rule read, as recorded in the grade
+    # with them the student's own contact config (issue 44, hostile pass 3): it could be built to measure what they did
+    withheld = deciding | {"sheet.extension"}
     x2 = staff["X2"]
     assert deciding and set(x2["backends"]) & deciding and "penetration_proxy" in x2["measured"], (staff["A2"], x2)
-    untouched = [i for i, item in staff.items() if not set(item["backends"]) & deciding and i != "A2"]
+    untouched = [i for i, item in staff.items() if not set(item["backends"]) & withheld and i != "A2"]
     assert "friction-baseline" not in deciding and untouched, untouched
     leaks = [p for p in x2["measured"].split("; ") + staff["A2"]["measured"].split("; ") if p]
 
@@ -47,11 +49,11 @@ def test_the_runs_deciding_a_withheld_item_are_withheld_on_every_surface_until_r
     mine = items["X2"]
     assert (mine["score"], mine["verdict"]) == (x2["score"], x2["verdict"])
     assert (mine["measured"], mine["evidence"]) == ("", None) and set(mine["evidence_withheld"]) == (
-        set(x2["backends"]) & deciding)
-    assert all(items[i] == staff[i] for i in untouched)  # an item reading no deciding run is shown whole
-    assert set(grade.json()["withheld_measurements"]) == deciding
+        set(x2["backends"]) & withheld)
+    assert all(items[i] == staff[i] for i in untouched)  # an item reading no withheld run is shown whole
+    assert set(grade.json()["withheld_measurements"]) == withheld
     results = _get(api, f"/submissions/{sid}/results.json")
-    assert results.status_code == 200 and set(results.json()["withheld_measurements"]) == deciding
+    assert results.status_code == 200 and set(results.json()["withheld_measurements"]) == withheld
     page = _get(api, f"/submissions/{sid}")
     assert page.status_code == 200
     text = html.unescape(page.text)
@@ -69,7 +71,7 @@ def test_the_runs_deciding_a_withheld_item_are_withheld_on_every_surface_until_r
     for path in (f"/submissions/{sid}/series.json", f"/v1/submissions/{sid}/series"):
         doc = _get(api, path).json()
         runs = {r["name"]: r for r in doc["runs"]}
-        assert set(doc["withheld"]) == deciding, path
+        assert set(doc["withheld"]) == withheld, path
         for run in deciding:
             assert runs[run]["status"] == "withheld" and not {"series", "metrics", "data", "lanes"} & set(runs[run])
         assert "series" in runs["friction-baseline"], path
@@ -286,6 +288,23 @@ def test_runs_measured_alike_by_key_by_evidence_by_metrics_or_by_arrays_are_twin
             "friction-baseline": ["friction-baseline-colors-swapped"],
             "friction-baseline-colors-swapped": ["friction-baseline"],
             "friction-table-0.30": ["sheet.table_exercise"], "sheet.table_exercise": ["friction-table-0.30"]}
+
+
+def test_a_students_own_config_of_a_withheld_runs_kind_is_withheld_whatever_it_measured(api, measured):
+    """Issue 44 (hostile pass 3): configs of one's own can be built to measure what a withheld lesson run measured in
+    more ways than any rule over inputs or outputs can list (a nudged input, a shifted scene, another lane order).
+    While a run of a kind is withheld, every config of the student's of that kind is withheld with it, saying why;
+    the lesson's runs of another physics stay shown, and so do configs of another kind."""
+    sheet = reference_sheet()
+    sheet["configs"]["extension"] |= {"dt": 0.004, "substeps": 1}  # an internal step no lesson case has
+    create(api, part="exercises", item_visibility={"A2": "on_release"})
+    sid = free_graded(api, measured, complete=True, sheet=sheet)
+    refused = _get(api, f"/v1/submissions/{sid}/case-runs/sheet.extension/files/metrics.json")
+    assert refused.status_code == 409, refused.text
+    assert "is your own contact config, which could measure what N1 measured" in refused.json()["detail"]
+    withheld = grade_of(api, sid, "alice").json()["withheld_measurements"]
+    assert set(withheld) == {"N1", "N2", "N3", "N4", "sheet.extension"}, withheld
+    assert _get(api, f"/v1/submissions/{sid}/case-runs/sheet.table_exercise/files/metrics.json").status_code == 200
 
 
 def test_arrays_equal_but_for_the_time_axis_and_the_recorded_inputs_are_twins(api, measured, monkeypatch):
