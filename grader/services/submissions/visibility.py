@@ -27,7 +27,7 @@ are the same for every sheet of a student, so every item of the lesson that any 
 from the student (`lesson_withheld`, any part) withholds the runs that could tell its answer, on each of the
 student's submissions of the lesson: the runs its scoring rule reads by declaration (the lesson's `runs_read`),
 whatever the item's verdict (a hidden item graded one_factor_violation or not_measured still asks about them), and
-whether or not the submission answers it (a checkpoint submission's friction-baseline would answer B3 of the
+whether or not the submission answers it (a checkpoint submission's lesson runs would answer an item of the
 exercises). A shown item reading such a run keeps its score and verdict, its measured values wait with the run.
 
 What a run measured, not its name, decides what it tells (issue 44): a run of the submission that measured the same as
@@ -37,7 +37,7 @@ the baseline, and a sheet's table exercise at 0.30 exactly the lesson's friction
 answer a withheld item about the other under its own name.
 
 A student's own configs go further: one can be built to measure what a withheld lesson run measured in more ways
-than any rule over inputs or outputs lists (a nudged input, a shifted scene, another lane order). While a run of a
+than any rule over inputs or outputs lists (a nudged input, a shifted scene, bodies listed in another order). While a run of a
 case kind is withheld, every config of the student's of that kind is withheld with it (`withheld_runs`' `configs`).
 """
 
@@ -174,7 +174,7 @@ def withheld_runs(report: dict | None, hidden: dict[str, str], runs: list[str],
     items it decides and when they are shown, and each run of `twins` ({run: the runs that measured the same},
     `measurement_twins`) of such a run, which would tell the same; and each of the student's own configs (`configs`:
     {run name: its case kind}) of the kind of a withheld run (`kinds`: {run name: kind}), which the student could
-    have built to measure what that run measured (a shifted scene, another lane order, a nudged input: no rule over
+    have built to measure what that run measured (a shifted scene, bodies listed in another order, a nudged input: no rule over
     inputs or outputs tells every such config apart). Without a report (not graded yet) every run is withheld while
     any item of the submission is: nothing yet says which run decided which item."""
     asked = asked or {}
