@@ -36,9 +36,10 @@ run), the same metrics but for the case's name, or bit-identical arrays. The col
 the baseline, and a sheet's table exercise at 0.30 exactly the lesson's friction-table-0.30; either would otherwise
 answer a withheld item about the other under its own name.
 
-A student's own configs go further: one can be built to measure what a withheld lesson run measured in more ways
-than any rule over inputs or outputs lists (a nudged input, a shifted scene, bodies listed in another order). While a run of a
-case kind is withheld, every config of the student's of that kind is withheld with it (`withheld_runs`' `configs`).
+Runs of one kind go further: a config can be built to measure what a withheld lesson run measured in more ways than
+any rule over inputs or outputs lists (a nudged input, a shifted scene, bodies listed in another order), and another
+lesson case of the kind tells the rule it shares (the friction cases' pair values tell the pair rule). While a run of
+a case kind is withheld, every run of that kind is withheld with it (`withheld_runs`' `kinds`).
 """
 
 from __future__ import annotations
@@ -167,15 +168,15 @@ def deciding_runs(item: dict, runs: list[str]) -> list[str]:
 def withheld_runs(report: dict | None, hidden: dict[str, str], runs: list[str],
                   twins: Mapping[str, Collection[str]] | None = None,
                   asked: Mapping[str, tuple[str, Collection[str]]] | None = None,
-                  configs: Mapping[str, str] | None = None, kinds: Mapping[str, str] | None = None) -> dict[str, str]:
+                  kinds: Mapping[str, str] | None = None) -> dict[str, str]:
     """{case run name: why its measurements are withheld}: the runs deciding any withheld item of `report` (the
     stored grade's), the runs that could tell the answer of any item of `asked` ({item id: (why it is withheld, those
     runs)}: every item of the lesson withheld from the student, `lesson_withheld` and `runs_answering`), each with the
     items it decides and when they are shown, and each run of `twins` ({run: the runs that measured the same},
-    `measurement_twins`) of such a run, which would tell the same; and each of the student's own configs (`configs`:
-    {run name: its case kind}) of the kind of a withheld run (`kinds`: {run name: kind}), which the student could
-    have built to measure what that run measured (a shifted scene, bodies listed in another order, a nudged input: no rule over
-    inputs or outputs tells every such config apart). Without a report (not graded yet) every run is withheld while
+    `measurement_twins`) of such a run, which would tell the same; and every run of the kind of a withheld run
+    (`kinds`: {run name: its case kind}): a run of one kind tells another's physics in more ways than a rule over
+    inputs or outputs lists (a config nudged below single precision, a shifted scene, bodies listed in another order;
+    another lesson case read for the rule it shares, as the friction cases' pair values tell the pair rule). Without a report (not graded yet) every run is withheld while
     any item of the submission is: nothing yet says which run decided which item."""
     asked = asked or {}
     if not hidden and not asked:
@@ -198,10 +199,10 @@ def withheld_runs(report: dict | None, hidden: dict[str, str], runs: list[str],
     for run in list(out):  # sorted: a twin of two deciding runs is named after the first
         for twin in sorted((twins or {}).get(run, ())):
             out.setdefault(twin, f"measured the same as {run}, which {out[run]}")
-    for config, kind in sorted((configs or {}).items()):
-        like = next((run for run in sorted(out) if (kinds or {}).get(run) == kind and run != config), None)
-        if like is not None and config not in out:
-            out[config] = f"is your own {kind} config, which could measure what {like} measured; {like} {out[like]}"
+    for run, kind in sorted((kinds or {}).items()):
+        like = next((other for other in sorted(out) if (kinds or {}).get(other) == kind and other != run), None)
+        if like is not None and run not in out:
+            out[run] = f"is a {kind} run, as {like} is, which {out[like]}"
     return out
 
 
@@ -306,15 +307,14 @@ def _evidence_withheld(item: dict, runs: dict[str, str]) -> dict:
 def shown_report(report: dict, hidden: dict[str, str], runs: list[str] | None = None,
                  twins: Mapping[str, Collection[str]] | None = None,
                  asked: Mapping[str, tuple[str, Collection[str]]] | None = None,
-                 configs: Mapping[str, str] | None = None, kinds: Mapping[str, str] | None = None) -> dict:
+                 kinds: Mapping[str, str] | None = None) -> dict:
     """The stored report as a student may see it: each withheld item keeps its question, points and the student's
     own prediction, but its score is None and its feedback says when it will be shown; the total counts the shown
     items only and `pending` says which points are still to come. The lab check (its conditions' evidence is
     measured against the same tolerances) is left out until nothing is withheld. Nothing is regraded on release.
     `twins`: the runs that measured the same as each run (`measurement_twins`), withheld with a deciding one; `asked`:
     the lesson's items withheld from the student and the runs that could answer them (`withheld_runs`)."""
-    withheld = withheld_runs(report, hidden, runs if runs is not None else _read_runs(report), twins, asked, configs,
-                             kinds)
+    withheld = withheld_runs(report, hidden, runs if runs is not None else _read_runs(report), twins, asked, kinds)
     if not hidden and not withheld:
         return report
     items, total, shown_max, pending_points = [], 0.0, 0.0, 0.0
@@ -334,8 +334,13 @@ def shown_report(report: dict, hidden: dict[str, str], runs: list[str] | None = 
     max_total = shown_max + pending_points
     note = (f"{pending_points:g} of {max_total:g} points pending ({', '.join(names)}): "
             + "; ".join(sorted(set(hidden.values())))) if hidden else None
-    # which item the grade's last override changed would tell a withheld one was overridden: left out while any is
-    kept = {k: v for k, v in report.items() if k != "made_by_override"}
+    # which item the grade's last override changed would tell a withheld one was overridden: left out while any is;
+    # so are the engine version its runs recorded and whether every item was measured (the answer of a withheld H6,
+    # a withheld item's state), and the one-factor findings while a config item is withheld (they are its answer)
+    dropped = {"made_by_override", "engine_version", "complete"}
+    if any(i.get("kind") == "config" and i["id"] in hidden for i in report.get("items", [])):
+        dropped.add("config_findings")
+    kept = {k: v for k, v in report.items() if k not in dropped}
     return {**kept, "items": items, "total": round(total, 6), "max_total": max_total, "pending": note,
             "check": None, "withheld_measurements": withheld}
 
@@ -387,8 +392,7 @@ class GradeView:
             return None
         if not self.hidden and not self.lesson_hidden:
             return self.stored.report
-        return shown_report(self.stored.report, self.hidden, self.run_names, self.twins, self.asked, self.configs,
-                            self.kinds)
+        return shown_report(self.stored.report, self.hidden, self.run_names, self.twins, self.asked, self.kinds)
 
     @cached_property
     def asked(self) -> dict[str, tuple[str, list[str]]]:
@@ -408,12 +412,6 @@ class GradeView:
         return {r.name: r.kind for r in self.submission.case_runs}
 
     @cached_property
-    def configs(self) -> dict[str, str]:
-        """{run name: case kind} of the student's own configs: the runs that are none of the lesson's cases."""
-        lesson_cases = lesson(self.submission.lesson).cases
-        return {r.name: r.kind for r in self.submission.case_runs if r.name not in lesson_cases}
-
-    @cached_property
     def twins(self) -> dict[str, list[str]]:
         """{run name: the submission's other runs that measured the same} (`measurement_twins`); read only while
         something is withheld."""
@@ -428,7 +426,7 @@ class GradeView:
         if not self.hidden and not self.lesson_hidden:
             return {}
         return withheld_runs(self.stored.report if self.stored is not None else None, self.hidden, self.run_names,
-                             self.twins, self.asked, self.configs, self.kinds)
+                             self.twins, self.asked, self.kinds)
 
     @property
     def total(self) -> float | None:

@@ -125,12 +125,12 @@ def test_a_withheld_item_is_not_in_the_series(api, measured):
     # shared sample): the same series wherever their times meet.
     alike = {name for name, run in staff_runs.items() for d in deciding if _same_at_shared_times(run, staff_runs[d])}
     assert alike - deciding, "the reference sheet's runs have twins of the deciding ones"
-    # and the student's own configs of a withheld run's kind (issue 44, hostile pass 3): the sheet's table exercise
-    own = {name for name, run in staff_runs.items() if name.startswith("sheet.")
-           and any(staff_runs[d]["kind"] == run["kind"] for d in deciding | alike)}
+    # and every run of a withheld run's kind (issue 44, hostile passes 3 and 4)
+    own = {name for name, run in staff_runs.items() if any(staff_runs[d]["kind"] == run["kind"] for d in deciding)}
     hidden = deciding | alike | own
     assert deciding and set(mine.json()["withheld"]) == hidden and set(mine_runs) == set(staff_runs)
     for name, run in mine_runs.items():
         assert run == staff_runs[name] if name not in hidden else (run["status"] == "withheld" and "series" not in run)
     page = api.client.get(f"/submissions/{sid}", headers=api.as_("alice")).text
-    assert 'id="figures"' in page and withheld["C5"]["feedback"] not in page
+    assert hidden == set(staff_runs)  # the checkpoints read a contact and a friction run: every run is withheld
+    assert 'id="figures"' not in page and withheld["C5"]["feedback"] not in page

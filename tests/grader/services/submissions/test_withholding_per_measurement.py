@@ -291,20 +291,38 @@ def test_runs_measured_alike_by_key_by_evidence_by_metrics_or_by_arrays_are_twin
 
 
 def test_a_students_own_config_of_a_withheld_runs_kind_is_withheld_whatever_it_measured(api, measured):
-    """Issue 44 (hostile pass 3): configs of one's own can be built to measure what a withheld lesson run measured in
-    more ways than any rule over inputs or outputs can list (a nudged input, a shifted scene, another lane order).
-    While a run of a kind is withheld, every config of the student's of that kind is withheld with it, saying why;
-    the lesson's runs of another physics stay shown, and so do configs of another kind."""
+    """Issue 44 (hostile passes 3 and 4): configs of one's own can be built to measure what a withheld lesson run
+    measured in more ways than any rule over inputs or outputs can list (a nudged input, a shifted scene, another lane
+    order), and another lesson case of the kind tells the rule it shares (friction-table-0.30's pair values told C5's
+    pair rule). While a run of a kind is withheld, every run of that kind is withheld with it, saying why; runs of
+    another kind stay shown, and the listing keeps nothing that would match a withheld run to another."""
     sheet = reference_sheet()
     sheet["configs"]["extension"] |= {"dt": 0.004, "substeps": 1}  # an internal step no lesson case has
     create(api, part="exercises", item_visibility={"A2": "on_release"})
     sid = free_graded(api, measured, complete=True, sheet=sheet)
     refused = _get(api, f"/v1/submissions/{sid}/case-runs/sheet.extension/files/metrics.json")
     assert refused.status_code == 409, refused.text
-    assert "is your own contact config, which could measure what N1 measured" in refused.json()["detail"]
+    assert "is a contact run, as N1 is, which decides A2" in refused.json()["detail"], refused.text
     withheld = grade_of(api, sid, "alice").json()["withheld_measurements"]
     assert set(withheld) == {"N1", "N2", "N3", "N4", "sheet.extension"}, withheld
     assert _get(api, f"/v1/submissions/{sid}/case-runs/sheet.table_exercise/files/metrics.json").status_code == 200
+    listed = {r["name"]: r for r in _get(api, f"/v1/submissions/{sid}/case-runs").json()}
+    assert all(listed[r][f] is None for r in withheld
+               for f in ("metrics", "provenance", "content_key", "measurement_id", "reused_from_id", "wall_s", "error"))
+    assert listed["friction-baseline"]["wall_s"] is not None
+
+
+def test_a_withheld_items_answer_is_not_in_the_reports_own_fields(api, measured):
+    """Issue 44 (hostile pass 4): with H5 and H6 withheld, results.json still carried the engine version the runs
+    recorded (H6's answer), the one-factor findings word for word (H5's) and whether every item was measured."""
+    create(api, part="exercises", item_visibility={"H5": "on_release", "H6": "on_release"})
+    sid = free_graded(api, measured, complete=True)
+    staff = _get(api, f"/submissions/{sid}/results.json", "prof").json()
+    assert staff["engine_version"] and staff["config_findings"] and "complete" in staff
+    mine = _get(api, f"/submissions/{sid}/results.json").json()
+    assert not {"engine_version", "config_findings", "complete"} & set(mine), sorted(mine)
+    page = html.unescape(_get(api, f"/submissions/{sid}").text)
+    assert not [f for f in staff["config_findings"] if f in page]
 
 
 def test_arrays_equal_but_for_the_time_axis_and_the_recorded_inputs_are_twins(api, measured, monkeypatch):
