@@ -61,10 +61,13 @@ def import_reference(page, service) -> None:
     page.wait_for_selector("#notice")
 
 
-def editable_config_inputs(page, role: str) -> list[str]:
+def editable_config_inputs(page, role: str, *, labels: bool = False) -> list[str]:
+    """The editable inputs of a config: those of the physics, or with `labels` its name and colours, which the
+    one-factor rule never counts and which are edited freely, outside the held lock (issue 49)."""
     found = page.locator(f"#config-{role} input:not([type=hidden]):not([readonly]), "
                          f"#config-{role} select:not([disabled])")
-    return found.evaluate_all("els => els.map(e => e.name)")
+    return found.evaluate_all("(els, labels) => els.filter(e => !!e.closest('.labels') === labels).map(e => e.name)",
+                              labels)
 
 
 def change_held_dt(page) -> None:
@@ -84,6 +87,8 @@ def test_a_violation_is_at_the_top_after_check_and_on_the_confirmation(browser, 
     # Only the field the hands-on exercise changes is editable; the rest are held, read-only, behind a <details>.
     assert editable_config_inputs(page, "table_exercise") == ["configs.table_exercise.table.friction"]
     assert editable_config_inputs(page, "extension") == ["configs.extension.dt", "configs.extension.substeps"]
+    named = editable_config_inputs(page, "table_exercise", labels=True)
+    assert "configs.table_exercise.name" in named and "configs.table_exercise.lanes.0.color.0" in named, named
     assert not page.is_visible("[id='f-configs.table_exercise.dt']")
     assert page.inner_text("label[for='f-configs.table_exercise.table.friction']") == "table friction"
     page.click("#held-table_exercise > summary")
