@@ -245,10 +245,12 @@ def stack(tmp_path_factory):
         for service in ("api", "worker-cpu", "proxy", "postgres"):
             logs = deployment.compose("logs", "--tail", "40", service, check=False)
             print(f"--- {service} (last lines)\n{logs.stdout[-3000:]}{logs.stderr[-1000:]}")
-        # The operator's guide's command (docs/operator.md): podman-compose 1.6's plain `down` knows only the
+        # The operator's guide's commands (docs/operator.md): podman-compose 1.6's plain `down` knows only the
         # containers its files name, not the replicas of `--scale`, which then keep the network and volumes;
-        # `--remove-orphans` removes every container labelled with the project first (issue 46).
-        deployment.compose("down", "-v", "--remove-orphans", "-t", "5", timeout=600, check=False)
+        # `--remove-orphans` removes them, but after the named services, so postgres and redis (which the replicas
+        # depend on) are refused the first time and go with a second `down` (issue 46).
+        for _ in range(2):
+            deployment.compose("down", "-v", "--remove-orphans", "-t", "5", timeout=600, check=False)
 
         def leftovers():
             networks = deployment.podman("network", "ls", "-q", "--filter", f"label=io.podman.compose.project="
