@@ -35,12 +35,13 @@ def submission_public(submission: Submission, session: Session, user: User) -> S
 def case_runs_public(submission: Submission, session: Session, user: User) -> list[CaseRunPublic]:
     """Every case run as `user` may see it: a run whose measurements decide an item withheld from them
     (GradeView.withheld_runs) keeps its state, spec and backends but not its provenance or metrics, nor what would
-    match it to another run (its content key, measurement, reused run, wall time) or tell what it measured (its
+    match it to another run (its content key, measurement, reused run, wall time and start and end) or tell what it
+    measured (its
     error: a run that failed says where its values went wrong)."""
     withheld = grade_view(session=session, submission=submission, user=user, report=False).withheld_runs
     runs = [CaseRunPublic.model_validate(r) for r in submission.case_runs]
     hidden = {"provenance": None, "metrics": None, "content_key": None, "measurement_id": None,
-              "reused_from_id": None, "wall_s": None, "error": None}
+              "reused_from_id": None, "wall_s": None, "error": None, "started_at": None, "finished_at": None}
     return [r.model_copy(update=hidden) if r.name in withheld else r for r in runs]
 
 

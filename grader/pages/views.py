@@ -205,8 +205,10 @@ def report_view(submission: Submission, grade: GradeView | None,
     now = utcnow()
     withheld = dict(withheld or {})
     runs = [RunRow(name=r.name, kind=r.kind, status=r.status, result_status=r.result_status, backend=r.backend,
-                   actual_backend=r.actual_backend, elapsed_s=_elapsed(r, now), error=r.error,
-                   reused_from_id=r.reused_from_id,
+                   # a withheld run keeps its state: its time, error and reuse would match it to another run
+                   actual_backend=r.actual_backend, elapsed_s=None if r.name in withheld else _elapsed(r, now),
+                   error=None if r.name in withheld else r.error,
+                   reused_from_id=None if r.name in withheld else r.reused_from_id,
                    provenance={} if r.name in withheld else r.provenance or {},
                    files=[] if r.name in withheld else _files(r), withheld=withheld.get(r.name))
             for r in submission.case_runs]

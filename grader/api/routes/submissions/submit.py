@@ -104,6 +104,12 @@ def list_case_runs(submission: SubmissionDep, session: SessionDep, user: Current
 
 
 @router.get("/{submission_id}/events", response_model=list[EventPublic], responses=ONE)
-def list_events(submission: SubmissionDep, session: SessionDep):
-    """Every timestamped state change of the submission and its case runs."""
-    return session.scalars(select(Event).where(Event.submission_id == submission.id).order_by(Event.id)).all()
+def list_events(submission: SubmissionDep, session: SessionDep, user: CurrentUser):
+    """Every timestamped state change of the submission and its case runs. A run whose measurements are withheld
+    from the caller (GradeView.withheld_runs) keeps its states and times, not its details: how long it took, its
+    error and which measurement it reused would match it to another run (issue 44, hostile pass 5)."""
+    withheld = grade_view(session=session, submission=submission, user=user, report=False).withheld_runs
+    ids = {r.id for r in submission.case_runs if r.name in withheld}
+    events = session.scalars(select(Event).where(Event.submission_id == submission.id).order_by(Event.id)).all()
+    return [EventPublic.model_validate(e).model_copy(update={"detail": "withheld"})
+            if e.case_run_id in ids and e.detail else EventPublic.model_validate(e) for e in events]

@@ -308,8 +308,15 @@ def test_a_students_own_config_of_a_withheld_runs_kind_is_withheld_whatever_it_m
     assert _get(api, f"/v1/submissions/{sid}/case-runs/sheet.table_exercise/files/metrics.json").status_code == 200
     listed = {r["name"]: r for r in _get(api, f"/v1/submissions/{sid}/case-runs").json()}
     assert all(listed[r][f] is None for r in withheld
-               for f in ("metrics", "provenance", "content_key", "measurement_id", "reused_from_id", "wall_s", "error"))
+               for f in ("metrics", "provenance", "content_key", "measurement_id", "reused_from_id", "wall_s", "error",
+                         "started_at", "finished_at"))
     assert listed["friction-baseline"]["wall_s"] is not None
+    # nor in the events (hostile pass 5): a withheld run's states stay, its details (time, error, reuse) do not
+    ids = {r["id"]: r["name"] for r in listed.values()}
+    events = _get(api, f"/v1/submissions/{sid}/events").json()
+    assert all(e["detail"] in (None, "withheld") for e in events if ids.get(e["case_run_id"]) in withheld)
+    staff_events = _get(api, f"/v1/submissions/{sid}/events", "prof").json()
+    assert any(e["detail"] not in (None, "withheld") for e in staff_events if ids.get(e["case_run_id"]) in withheld)
 
 
 def test_a_withheld_items_answer_is_not_in_the_reports_own_fields(api, measured):
