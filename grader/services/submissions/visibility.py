@@ -78,17 +78,13 @@ def withheld_items(*, session: Session, submission: Submission, user: User, now:
     A submission's items are withheld while any assignment of the course for its lesson withholds them from its
     student, its own assignment or another (issue 44: a practice assignment showing C1-C8 at once told what an exam
     withholding them until release keeps back), free submissions alike."""
-    if access.is_staff(user) and user.course_id == submission.course_id:
-        return {}
+    return _own_items(submission, lesson_withheld(session=session, submission=submission, user=user, now=now))
+
+
+def _own_items(submission: Submission, lesson_hidden: dict[str, str]) -> dict[str, str]:
+    """The part of `lesson_hidden` ({item id: why}, the lesson's) that is items of the submission."""
     ids = set(item_ids(submission.lesson, submission.part))
-    hidden: dict[str, str] = {}
-    for assignment in session.scalars(select(Assignment).where(
-            Assignment.course_id == submission.course_id, Assignment.lesson == submission.lesson)
-            .order_by(Assignment.id)):
-        for i, reason in _withheld_by(session, assignment, submission.student, now).items():
-            if i in ids:
-                hidden.setdefault(i, reason)
-    return hidden
+    return {i: why for i, why in lesson_hidden.items() if i in ids}
 
 
 def _lesson_assignments(session: Session, submission: Submission) -> list[Assignment]:
@@ -463,11 +459,9 @@ def grade_view(*, session: Session, submission: Submission, user: User, now: dat
     """The current grade of `submission` as `user` may see it at `now` (default: now).
 
     `report=False` defers the grade's report (the largest JSON) until a withheld item needs it masked."""
-    now = now or utcnow()
-    hidden = withheld_items(session=session, submission=submission, user=user, now=now)
+    lesson_hidden = lesson_withheld(session=session, submission=submission, user=user, now=now or utcnow())
     return GradeView(submission=submission, stored=current_grade(session, submission.id, report=report),
-                     hidden=hidden, lesson_hidden=lesson_withheld(session=session, submission=submission, user=user,
-                                                                  now=now))
+                     hidden=_own_items(submission, lesson_hidden), lesson_hidden=lesson_hidden)
 
 
 def attempt_standing(session: Session, submission: Submission, user: User, view: GradeView | None = None) -> dict:
