@@ -20,6 +20,7 @@ from grader.core.settings import settings
 from grader.core.states import CaseRunPurpose, CaseRunState, ExecutionMode, SubmissionState
 from grader.core.variants import measuring_submissions
 from grader.services.identity import access
+from grader.services.submissions.visibility import grade_view
 from rubric.lesson import lesson
 
 # The last measured runs an estimate is taken over: enough to be steady, few enough to follow a faster worker.
@@ -66,6 +67,7 @@ class RunProgress:
     running_s: float | None  # how long it has been running; None unless running
     wall_s: float | None
     error: str | None
+    withheld: bool = False  # its measurements are withheld from the reader: wall_s, error and reuse are not shown
 
     @property
     def finished(self) -> bool:
@@ -152,8 +154,13 @@ def submission_progress(*, session: Session, user: User, submission_id: int) -> 
     backends = sorted({r.backend for r in runs if r.status == CaseRunState.QUEUED})
     order = {backend: queue_order(session, backend) for backend in backends}
     places = {run_id: (i + 1, len(ids)) for ids in order.values() for i, run_id in enumerate(ids)}
-    rows = [_row(r, places.get(r.id), estimates.of(r.spec_key, r.kind, r.backend, r.mode,
-                                                   internal_updates(submission.lesson, r.kind, r.spec)), now)
+    # a run whose measurements are withheld from the caller (GradeView.withheld_runs) shows its state and place, not
+    # what would match it to another run: its time, error, reuse, nor an estimate from earlier runs of its very case
+    # (issue 44, hostile pass 5); its estimate comes from its size or its kind, as for a case never measured
+    withheld = grade_view(session=session, submission=submission, user=user, report=False).withheld_runs
+    rows = [_row(r, places.get(r.id), estimates.of(None if r.name in withheld else r.spec_key, r.kind, r.backend,
+                                                   r.mode, internal_updates(submission.lesson, r.kind, r.spec)), now,
+                 withheld=r.name in withheld)
             for r in runs]
     running_ahead = _running_ahead(session, backends, {r.id for r in runs}, estimates, now)
     ahead_s, unmeasured, never = _ahead(session, order, rows, running_ahead, estimates)
@@ -189,13 +196,15 @@ def _elapsed(started_at: datetime | None, now: datetime) -> float:
     return max(0.0, (now - started_at).total_seconds()) if started_at is not None else 0.0
 
 
-def _row(run: CaseRun, place: tuple[int, int] | None, estimate: Estimate | None, now: datetime) -> RunProgress:
+def _row(run: CaseRun, place: tuple[int, int] | None, estimate: Estimate | None, now: datetime, *,
+         withheld: bool = False) -> RunProgress:
     running = run.status == CaseRunState.RUNNING
     return RunProgress(id=run.id, name=run.name, kind=run.kind, backend=run.backend, status=run.status,
-                       result_status=run.result_status, reused=run.reused_from_id is not None,
+                       result_status=run.result_status, reused=run.reused_from_id is not None and not withheld,
                        position=place[0] if place else None, waiting=place[1] if place else None,
                        estimate=estimate, running_s=_elapsed(run.started_at, now) if running else None,
-                       wall_s=run.wall_s, error=run.error)
+                       wall_s=None if withheld else run.wall_s, error=None if withheld else run.error,
+                       withheld=withheld)
 
 
 def internal_updates(lesson_name: str, kind: str, spec: dict | None) -> int | None:
@@ -420,5 +429,6 @@ def as_json(progress: Progress) -> dict:
         "runs": [{"id": r.id, "name": r.name, "backend": r.backend, "status": r.status,
                   "result_status": r.result_status, "reused": r.reused, "position": r.position,
                   "waiting": r.waiting, "estimate": _estimate_json(r.estimate), "running_s": r.running_s,
-                  "remaining_s": r.remaining_s, "wall_s": r.wall_s, "error": r.error} for r in progress.runs],
+                  "remaining_s": r.remaining_s, "wall_s": r.wall_s, "error": r.error, "withheld": r.withheld}
+                 for r in progress.runs],
     }

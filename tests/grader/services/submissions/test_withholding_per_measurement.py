@@ -317,6 +317,15 @@ def test_a_students_own_config_of_a_withheld_runs_kind_is_withheld_whatever_it_m
     assert all(e["detail"] in (None, "withheld") for e in events if ids.get(e["case_run_id"]) in withheld)
     staff_events = _get(api, f"/v1/submissions/{sid}/events", "prof").json()
     assert any(e["detail"] not in (None, "withheld") for e in staff_events if ids.get(e["case_run_id"]) in withheld)
+    # nor on the progress page's JSON and its rendered rows: the state stays, the time, error and reuse do not
+    progress = _get(api, f"/submissions/{sid}/progress.json").json()
+    rows = {r["name"]: r for r in progress["runs"]}
+    assert all(rows[r]["withheld"] and rows[r]["wall_s"] is None and rows[r]["error"] is None
+               and rows[r]["reused"] is False and rows[r]["status"] == "done" for r in withheld), rows
+    assert rows["friction-baseline"]["wall_s"] is not None and not rows["friction-baseline"]["withheld"]
+    assert progress["html"].count("run-withheld") == len(withheld), progress["html"]
+    staff_rows = {r["name"]: r for r in _get(api, f"/submissions/{sid}/progress.json", "prof").json()["runs"]}
+    assert all(staff_rows[r]["wall_s"] is not None and not staff_rows[r]["withheld"] for r in withheld)
 
 
 def test_a_withheld_items_answer_is_not_in_the_reports_own_fields(api, measured):
