@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from sqlalchemy import Engine, create_engine, event
@@ -85,6 +87,37 @@ def get_engine() -> Engine:
 
 def new_session() -> Session:
     return Session(get_engine(), expire_on_commit=False)
+
+
+@contextmanager
+def snapshot(session: Session) -> Iterator[Session]:
+    """The reads inside see the database as of one moment: whatever commits meanwhile is seen by none of them or all.
+
+    Without this, consecutive SELECTs are not one snapshot on either database: PostgreSQL's default isolation (READ
+    COMMITTED) takes a fresh snapshot per statement, and SQLite under the pysqlite driver's legacy transaction
+    handling sends BEGIN only before a write, so each SELECT reads the database as it is then (issue 49: a page read a
+    run's state as queued, a worker claimed it, and the queue order read next no longer had it).
+
+    The session's transaction so far ends first (committed: what it wrote is kept; a transaction's snapshot is taken
+    at its start, which is past) and what it loaded is expired, so the objects the reads use come from the snapshot.
+    The snapshot is one transaction: REPEATABLE READ on PostgreSQL; on SQLite an explicit BEGIN, whose first read fixes
+    what it sees (WAL: writers go on meanwhile). It ends on the way out (committed, nothing written; rolled back on an
+    error), so a write the caller makes next is not refused for reading an old snapshot."""
+    if session.in_transaction():
+        session.commit()
+    session.expire_all()
+    if session.get_bind().dialect.name == "postgresql":
+        session.connection(execution_options={"isolation_level": "REPEATABLE READ"})
+    else:
+        connection = session.connection()
+        if not connection.connection.dbapi_connection.in_transaction:
+            connection.exec_driver_sql("BEGIN")
+    try:
+        yield session
+    except BaseException:
+        session.rollback()
+        raise
+    session.commit()
 
 
 def migrate(url: str | None = None) -> None:

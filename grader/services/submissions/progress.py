@@ -14,6 +14,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.core import clock, warmth
+from grader.core.db import snapshot
 from grader.core.lifecycle import NEW_PRIORITY, POOL_PRIORITY, REQUEUED_PRIORITY, fair_priority
 from grader.core.models import CaseRun, Submission, User
 from grader.core.settings import settings
@@ -146,30 +147,37 @@ class Progress:
 
 
 def submission_progress(*, session: Session, user: User, submission_id: int) -> Progress:
-    """The progress of a submission `user` may read (NotFound for any other, as for its report)."""
-    submission = access.readable_submission(session=session, user=user, submission_id=submission_id)
-    now = clock.now()
-    runs = list(submission.case_runs)
-    estimates = _Estimates(session)
-    backends = sorted({r.backend for r in runs if r.status == CaseRunState.QUEUED})
-    order = {backend: queue_order(session, backend) for backend in backends}
-    places = {run_id: (i + 1, len(ids)) for ids in order.values() for i, run_id in enumerate(ids)}
-    # a run whose measurements are withheld from the caller (GradeView.withheld_runs) shows its state and place, not
-    # what would match it to another run: its time, error, reuse, nor an estimate from earlier runs of its very case
-    # (issue 44, hostile pass 5); its estimate comes from its size or its kind, as for a case never measured
-    withheld = grade_view(session=session, submission=submission, user=user, report=False).withheld_runs
-    rows = [_row(r, places.get(r.id), estimates.of(None if r.name in withheld else r.spec_key, r.kind, r.backend,
-                                                   r.mode, internal_updates(submission.lesson, r.kind, r.spec)), now,
-                 withheld=r.name in withheld)
-            for r in runs]
-    running_ahead = _running_ahead(session, backends, {r.id for r in runs}, estimates, now)
-    ahead_s, unmeasured, never = _ahead(session, order, rows, running_ahead, estimates)
+    """The progress of a submission `user` may read (NotFound for any other, as for its report).
+
+    Its runs' states, the queue order, what runs ahead and the estimates are read in one snapshot of the database
+    (grader.core.db.snapshot): read one after another, a run claimed by a worker between two reads was shown queued
+    with no place in the queue (issue 49). The caller's transaction so far ends first (see snapshot)."""
+    with snapshot(session):
+        now = clock.now()
+        submission = access.readable_submission(session=session, user=user, submission_id=submission_id)
+        runs = list(submission.case_runs)
+        estimates = _Estimates(session)
+        backends = sorted({r.backend for r in runs if r.status == CaseRunState.QUEUED})
+        order = {backend: queue_order(session, backend) for backend in backends}
+        places = {run_id: (i + 1, len(ids)) for ids in order.values() for i, run_id in enumerate(ids)}
+        # a run whose measurements are withheld from the caller (GradeView.withheld_runs) shows its state and place,
+        # not what would match it to another run: its time, error, reuse, nor an estimate from earlier runs of its
+        # very case (issue 44, hostile pass 5); its estimate comes from its size or its kind, as for a case never
+        # measured
+        withheld = grade_view(session=session, submission=submission, user=user, report=False).withheld_runs
+        rows = [_row(r, places.get(r.id), estimates.of(None if r.name in withheld else r.spec_key, r.kind, r.backend,
+                                                       r.mode, internal_updates(submission.lesson, r.kind, r.spec)),
+                     now, withheld=r.name in withheld)
+                for r in runs]
+        running_ahead = _running_ahead(session, backends, {r.id for r in runs}, estimates, now)
+        ahead_s, unmeasured, never = _ahead(session, order, rows, running_ahead, estimates)
+        running_on_backend = {b: _running(session, b) for b in backends}
+        status = submission.status
     unfinished = [row for row in rows if not row.finished]
     own = None if any(row.estimate is None for row in unfinished) else sum(row.remaining_s for row in unfinished)
-    return Progress(submission=submission, status=submission.status, runs=rows,
-                    running_on_backend={b: _running(session, b) for b in backends},
-                    ahead_s=ahead_s, ahead_unmeasured=unmeasured, ahead_never_measured=never, own_s=own, running_ahead=running_ahead,
-                    warming_up=warming_up(backends))
+    return Progress(submission=submission, status=status, runs=rows, running_on_backend=running_on_backend,
+                    ahead_s=ahead_s, ahead_unmeasured=unmeasured, ahead_never_measured=never, own_s=own,
+                    running_ahead=running_ahead, warming_up=warming_up(backends))
 
 
 def warming_up(backends: list[str]) -> WarmingUp | None:

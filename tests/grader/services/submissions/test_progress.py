@@ -7,6 +7,7 @@ from __future__ import annotations
 import re
 from datetime import timedelta
 
+import pytest
 from sqlalchemy import select
 
 from grader.core.db import new_session
@@ -59,6 +60,64 @@ def test_the_queue_order_counted_from_the_database_is_the_order_the_sent_priorit
         assert bobs.runs[0].position is None and bobs.runs[1].position == served.index(bobs.runs[1].id)
         assert bobs.runs[1].waiting == 23 and bobs.running_on_backend == {"cpu": 1}
     assert again
+
+
+@pytest.fixture
+def pg_api(tmp_path, monkeypatch):
+    """The app in-process on a fresh PostgreSQL database (READ COMMITTED by default: a snapshot per statement)."""
+    from tests import services
+    from tests.grader.conftest import app_on
+
+    with services.postgres_database() as url, app_on(url, tmp_path, monkeypatch) as state:
+        yield state
+
+
+@pytest.mark.parametrize("backend", ["sqlite", pytest.param("postgresql", marks=pytest.mark.integration)])
+def test_the_first_render_shows_each_queued_runs_place_though_a_worker_claims_one_between_the_reads(
+        backend, request, monkeypatch):
+    """Issue 49: the first render showed a run "queued" with place "-" and no queue section while the database had it
+    queued: the page read the runs' states, a worker claimed one, then the queue order was read without it. Here a
+    worker's claim (grader.core.lifecycle.claim, committed from its own connection) lands between the two reads of
+    every render; the states and the places must come from one moment: a run shown queued has its place, and the
+    places count the runs shown queued (the moment before the claim or after it, either is true)."""
+    from grader.core.lifecycle import claim
+
+    api = request.getfixturevalue("api" if backend == "sqlite" else "pg_api")
+    mine = submit(api, "alice")
+    claimed: list[int] = []
+    original = progress.queue_order
+
+    def claimed_between_the_reads(session, backend_name):
+        with new_session() as worker:  # a worker's connection, committing while the page reads
+            run_id = worker.scalar(select(CaseRun.id).where(CaseRun.submission_id == mine,
+                                                            CaseRun.status == CaseRunState.QUEUED)
+                                   .order_by(CaseRun.id))
+            run, _ = claim(session=worker, case_run_id=run_id, delivery=1)
+            assert run is not None
+            worker.commit()
+            claimed.append(run_id)
+        return original(session, backend_name)
+
+    monkeypatch.setattr(progress, "queue_order", claimed_between_the_reads)
+    page = api.client.get(f"/submissions/{mine}/progress", headers=api.as_("alice"))
+    assert page.status_code == 200 and len(claimed) == 1, page.text
+    shown = {name: (state, place.strip()) for name, state, place in re.findall(
+        r'<tr id="run-([^"]+)">.*?data-state="(\w+)".*?<td data-label="place in queue">(.*?)</td>', page.text, re.S)}
+    queued = [name for name, (state, _) in shown.items() if state == "queued"]
+    assert len(shown) == 9 and queued, shown
+    assert sorted(place for state, place in shown.values() if state == "queued") == \
+        sorted(f"{k} of {len(queued)}" for k in range(1, len(queued) + 1)), shown
+    assert all(place == "–" or place.startswith("being run") for state, place in shown.values() if state != "queued")
+    assert 'id="queue-place"' in page.text
+    # The JSON the script polls, read the same way (another claim between its reads).
+    data = api.client.get(f"/submissions/{mine}/progress.json", headers=api.as_("alice")).json()
+    assert len(claimed) == 2
+    waiting = [r for r in data["runs"] if r["status"] == "queued"]
+    assert sorted(r["position"] for r in waiting) == list(range(1, len(waiting) + 1)), data["runs"]
+    assert all(r["waiting"] == len(waiting) for r in waiting)
+    assert all(r["position"] is None for r in data["runs"] if r["status"] != "queued")
+    with new_session() as session:  # the claims were committed: the database moved on while each render read
+        assert {r.id for r in runs_of(session, mine) if r.status == CaseRunState.RUNNING} == set(claimed)
 
 
 def _runs(submission_id: int) -> list[CaseRun]:
