@@ -15,6 +15,7 @@ RUN pip install --require-hashes --no-deps -r /opt/requirements/api.lock \
 WORKDIR /app
 COPY pyproject.toml README.md ./
 COPY rubric rubric
+COPY lessons lessons
 COPY worker worker
 COPY examples examples
 COPY grader grader

@@ -27,6 +27,7 @@ RUN --mount=type=bind,from=wheels,target=/wheels \
 WORKDIR /app
 COPY pyproject.toml README.md ./
 COPY rubric rubric
+COPY lessons lessons
 COPY worker worker
 COPY examples examples
 COPY grader grader

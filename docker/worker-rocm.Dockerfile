@@ -11,6 +11,7 @@ RUN awk '/^torch==/ {skip = 1; next} /^[^ ]/ {skip = 0} !skip' /opt/requirements
 WORKDIR /app
 COPY pyproject.toml README.md ./
 COPY rubric rubric
+COPY lessons lessons
 COPY worker worker
 COPY examples examples
 COPY grader grader

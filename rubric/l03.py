@@ -40,7 +40,10 @@ LESSON = Lesson(
     languages=("en", "zh"),
     files=LESSONS_DIR,
     case_kinds={"contact": ContactCase, "friction": FrictionCase},
-    scenes="worker.engine",
+    scenes="lessons.l03.scenes",
+    # every scene structure of its cases (the friction cases share one; each contact discretisation is its own), the
+    # two it always had first
+    warm_up_cases=("N1", "friction-baseline", "N2", "N3", "N4", "N5"),
     cases=cases.BASELINE_CASES,
     check_cases=tuple(cases.CHECK_CASES),
     scoring_rules=scoring.SCORING_RULES,

@@ -10,8 +10,10 @@ distribution. The declaration says everything a lesson owns:
                       (NAME-audit-vV.yaml), variant spaces (NAME-lab-variants-vV.yaml) and the texts of each language
                       but English (NAME.LANG.yaml); their governance is rubric.governance's, as for every lesson
   case_kinds          {kind: its case spec model}: what a student's config may be
-  scenes              the module that builds each case kind's Genesis scene and records its samples: the only
-                      Genesis-importing code, imported by name inside the case process alone
+  scenes              the module that builds each case kind's Genesis scene and records its samples
+                      (worker.scene_kit says what it provides; the runner hands it the initialised Genesis),
+                      imported by name inside the case process alone
+  warm_up_cases       the cases a warm case process runs first, one per scene structure
   cases               its baseline case table; check_cases the names its lab check runs
   scoring_rules       {rule name: scoring function}: every rubric item's `check` must name one
   grade_sheet, cases_to_run, evaluate_check, verdict_line
@@ -67,6 +69,9 @@ class Lesson:
     # spec): runs of one key measure the same, and are withheld together (grader.services.submissions.visibility)
     physics_key: Callable[[str, Mapping[str, Any]], str | None]
     languages: Sequence[str] = (SOURCE_LANGUAGE,)
+    # Names in `cases` a warm case process runs before any real case, one per scene structure its cases use, so a
+    # first submission builds no scene (worker.warm_process.warm_up)
+    warm_up_cases: Sequence[str] = ()
     # Rubric versions kept readable for the grades stored under them but never used to grade again: their items may
     # name rules the lesson no longer has.
     archived_versions: Sequence[str] = ()
@@ -121,6 +126,25 @@ def lesson(name: str) -> Lesson:
     return _checked(declared, f"entry point {entry.name} = {entry.value}", name)
 
 
+def lesson_of_kind(kind: str) -> Lesson:
+    """The installed lesson that declares case kind `kind` (a stored spec names its kind, not its lesson). A kind is
+    one lesson's: LessonNotFound when none or more than one installed lesson declares it."""
+    owners = [name for name in lesson_names() if kind in lesson(name).case_kinds]
+    if len(owners) != 1:
+        raise LessonNotFound(f"case kind {kind!r} is declared by {len(owners)} installed lessons"
+                             + (f" ({', '.join(owners)})" if owners else "") + ", not one")
+    return lesson(owners[0])
+
+
+def parse_spec(data: Mapping[str, Any]):
+    """A stored case spec validated by the model its lesson declares for its `kind` (pydantic.ValidationError naming
+    each bad field; LessonNotFound for a kind no installed lesson declares)."""
+    kind = data.get("kind") if isinstance(data, Mapping) else None
+    if not isinstance(kind, str):
+        raise LessonNotFound("a case spec names its kind (\"kind\": one of the installed lessons' case kinds)")
+    return lesson_of_kind(kind).case_kinds[kind].model_validate(data)
+
+
 def load_lesson(path: Path) -> Lesson:
     """The lesson a Python file declares as `LESSON` (a lesson author's package before it is installed: the file, or
     a folder holding `lesson.py`)."""
@@ -145,4 +169,5 @@ def _checked(declared, origin: str, name: str | None) -> Lesson:
     return dataclasses.replace(declared, origin=origin)
 
 
-__all__ = ["ENTRY_POINTS", "Lesson", "LessonNotFound", "SOURCE_LANGUAGE", "lesson", "lesson_names", "load_lesson"]
+__all__ = ["ENTRY_POINTS", "Lesson", "LessonNotFound", "SOURCE_LANGUAGE", "lesson", "lesson_names", "lesson_of_kind",
+           "load_lesson", "parse_spec"]

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from rubric import get_case
+from lessons.l03 import scenes
 from worker import engine
 
 
@@ -22,7 +23,7 @@ def _np(tensor) -> np.ndarray:
 
 
 def contact_z(gs, spec, n_envs: int) -> np.ndarray:
-    built = engine._build_contact(gs, spec, n_envs=n_envs)
+    built = scenes.build_contact(gs, spec, n_envs=n_envs)
     z = np.empty((spec.n_steps, n_envs))
     for i in range(spec.n_steps):
         built.scene.step()
@@ -32,7 +33,7 @@ def contact_z(gs, spec, n_envs: int) -> np.ndarray:
 
 
 def friction_low_x(gs, spec, n_envs: int, table_ratios: list[float] | None) -> np.ndarray:
-    built = engine._build_friction(gs, spec, n_envs=n_envs)
+    built = scenes.build_friction(gs, spec, n_envs=n_envs)
     if table_ratios is not None:
         built.table.set_friction_ratio(np.array(table_ratios).reshape(n_envs, 1), envs_idx=np.arange(n_envs))
     for _ in range(spec.settle_steps):
@@ -54,9 +55,7 @@ def _verdict(batched: np.ndarray, fresh: np.ndarray) -> str:
 
 def main() -> None:
     gs = engine.ensure_genesis("cpu", "32", 0)
-    fresh = {name: engine.simulate_contact(gs, get_case(name))[0] if name == "N1" else
-             engine.simulate_friction(gs, get_case(name))[0] for name in ("N1", "friction-baseline",
-                                                                           "friction-table-0.30")}
+    fresh = {name: engine.simulate(gs, get_case(name))[0] for name in ("N1", "friction-baseline", "friction-table-0.30")}
     z = contact_z(gs, get_case("N1"), 2)
     for env in range(2):
         print(f"N1, environment {env} of 2: z {_verdict(z[:, env], fresh['N1']['z'])}")

@@ -7,12 +7,12 @@ import json
 import sys
 from pathlib import Path
 
-from rubric import parse_case
+from rubric.lesson import parse_spec
 
 
 def main(argv: list[str]) -> int:
     spec_path, out_dir = Path(argv[0]), Path(argv[1])
-    spec = parse_case(json.loads(spec_path.read_text()))
+    spec = parse_spec(json.loads(spec_path.read_text()))
     from .engine import run_case_in_genesis  # lazy: worker.engine is imported only when a case process runs a case
 
     return run_case_in_genesis(spec, out_dir, mode="isolated")

@@ -1,6 +1,6 @@
 """Warm case process: one long-lived Genesis process that builds a scene per case, or resets a kept one (reuse).
 
-Started with a backend to warm up, it first builds the lesson's scene structures (`warm_up`), then serves.
+Started with a backend to warm up, it first builds the lessons' scene structures (`warm_up`), then serves.
 
 Protocol: the parent writes one JSON line per case ({"spec": path, "out_dir": path, "reuse": bool}) on stdin; this process answers
 one JSON line ({"exit_status": int}) on the file descriptor given as argv[1], after one line ({"warm_up_s": float, "ok":
@@ -17,8 +17,7 @@ import time
 import traceback
 from pathlib import Path
 
-from rubric import parse_case
-from rubric.cases import BASELINE_CASES
+from rubric.lesson import lesson, lesson_names, parse_spec
 
 from .errors import EXIT_ERROR
 from .kernel_cache import compile_once
@@ -41,15 +40,18 @@ def _exit_on_sigterm(signum, _frame) -> None:
     raise SystemExit(128 + signum)
 
 
-# Every scene structure of the lesson's cases (the friction cases share one; each contact discretisation is its
-# own), the two it always had first: a submission's first cases then build no scene, as a later submission's do not
-# (a first submission once warm took 2.3x a cold one when only N1 and the friction baseline were built, issue 35).
-WARM_UP_CASES = ("N1", "friction-baseline", "N2", "N3", "N4", "N5")
+def warm_up_cases() -> list[tuple[str, object]]:
+    """(name, spec) of every installed lesson's warm-up cases (Lesson.warm_up_cases: one per scene structure its cases
+    use), so that a submission's first cases build no scene, as a later submission's do not (an L03 first submission
+    once warm took 2.3x a cold one when only two of its structures were built, issue 35)."""
+    return [(name, declared.cases[name]) for declared in map(lesson, lesson_names()) for name in declared.warm_up_cases]
+
+
 WARM_UP_DONE = "warm case process warmed up"  # the line it writes to the worker's log when done
 
 
 def warm_up(backend: str, reuse: bool, *, said: str = WARM_UP_DONE) -> dict:
-    """Build and run the lesson's scene structures (WARM_UP_CASES) on `backend` into a folder removed after, before any
+    """Build and run the lessons' scene structures (`warm_up_cases`) on `backend` into a folder removed after, before any
     case: Genesis imported and initialised, kernels loaded, and (with reuse) every scene kept for the first cases. What
     it did, or why it failed, goes to its stderr, the worker's own log (one WARM_UP_DONE line); a real case never
     depends on it. Returns the line the parent reads: {"warm_up_s": seconds, "ok": every structure ran}."""
@@ -59,8 +61,8 @@ def warm_up(backend: str, reuse: bool, *, said: str = WARM_UP_DONE) -> dict:
     started = time.perf_counter()
     statuses = {}
     with tempfile.TemporaryDirectory(prefix="warm-up-") as folder:
-        for name in WARM_UP_CASES:
-            spec = BASELINE_CASES[name].model_copy(update={"backend": backend})
+        for name, case in warm_up_cases():
+            spec = case.model_copy(update={"backend": backend})
             out_dir = Path(folder) / name
             out_dir.mkdir()
             try:
@@ -92,7 +94,7 @@ def main(reply_fd: int, warm_up_backend: str | None = None, reuse: bool = False)
         out_dir = Path(request["out_dir"])
         _redirect(str(out_dir / "stdout.txt"), str(out_dir / "stderr.txt"))
         try:
-            spec = parse_case(json.loads(Path(request["spec"]).read_text()))
+            spec = parse_spec(json.loads(Path(request["spec"]).read_text()))
             status = run_case_in_genesis(spec, out_dir, mode="warm", reuse=bool(request.get("reuse")))
         except Exception:
             traceback.print_exc()

@@ -47,7 +47,7 @@ class Settings(BaseSettings):
     # tests/worker/test_scene_reuse.py proves the arrays equal, sample for sample, to a fresh scene's.
     scene_reuse: bool = True
     # A worker process starts its warm case process when it starts, and that process builds the lesson's scene
-    # structures (N1-N5, friction-baseline: worker.warm_process.WARM_UP_CASES) on this backend before it reads a
+    # structures (the lessons' warm_up_cases: worker.warm_process.warm_up_cases) on this backend before it reads a
     # case: the first case after a deploy or a restart no longer pays ~15 s of import, init and kernel loading.
     # "off": started on the first case instead. A ROCm worker sets rocm (docker-compose.yml); a warm-up that fails is
     # logged, and the first case then fails visibly as it would have.

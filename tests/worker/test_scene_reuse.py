@@ -7,7 +7,7 @@ import pytest
 
 from rubric import get_case
 from worker import WarmCaseProcess
-from worker.engine import structure_key
+from lessons.l03.scenes import structure_key
 
 N1 = get_case("N1")
 BASELINE = get_case("friction-baseline")
