@@ -18,7 +18,16 @@ def kernel_cache_filled(measured) -> None:
     """The machine's Genesis kernel cache holds the lesson's kernels before a test copies it for processes it may
     SIGKILL (services.private_kernel_cache): on a fresh machine an empty copy would make every fresh worker compile
     for ~100 s, and a recovery timed from a worker being ready would time the compiler. `measured` compiles them
-    (once per session, shared with every other user of it)."""
+    (once per session, shared with every other user of it).
+
+    The cache also holds worker.kernel_cache's marker, which says the kernels are there: without it, the first worker
+    of every copy (the stack's, test_faults_under_load's, test_embedded's, a second host's) ran the compile's child
+    process, every scene of the lesson once more (33 s idle, 90 s loaded, while the worker's slot waited on it), and
+    a worker started beside it waited too. `compile_once` leaves it, once per machine: the worker's own code, under
+    its file lock (so two test processes make one), and a no-op once the marker is there."""
+    from worker.kernel_cache import compile_once
+
+    compile_once("cpu")
 
 
 @pytest.fixture(scope="session")

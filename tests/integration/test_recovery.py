@@ -88,7 +88,10 @@ def test_rocm_is_refused_until_a_worker_listens_then_fails_on_one_without_rocm_n
         client.submit(sheet, backend="rocm")
     redis = services.redis_client()
     assert sum(redis.llen(key) for key in redis.scan_iter("rocm*")) == 0  # nothing left waiting on the rocm queue
-    rocm = services.start_worker(stack.env, "rocm", stack.logs / "worker-rocm.log")
+    # Started as the ROCm worker is deployed (docker-compose.yml: WARM_UP_BACKEND=rocm), its slot warms up on rocm:
+    # without a ROCm device that warm-up fails in seconds and the worker listens, rather than first building every
+    # scene of the lesson on the cpu it never serves (56 s idle, 90-150 s on a loaded machine, of this test's 200 s).
+    rocm = services.start_worker(stack.env | {"WARM_UP_BACKEND": "rocm"}, "rocm", stack.logs / "worker-rocm.log")
     try:
         deadline, created = time.monotonic() + 180, None
         while created is None:  # refused until the new worker answers the broker's roll call
