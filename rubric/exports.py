@@ -80,15 +80,23 @@ def gradescope_results(report: GradeReport, execution_time: float,
     if unknown:
         raise ValueError(f"Gradescope visibility must be one of {', '.join(GRADESCOPE_VISIBILITIES)}; got {unknown}")
     on = f" on variant {report.variant}" if report.variant is not None else ""
+    # The results' own output and score tell every item: while a test is withheld they take the most withholding of
+    # the tests' visibilities, and the output leaves out the total, and the one-factor findings while a config item
+    # is withheld (they are its answer), so that what is visible tells no withheld test.
+    strictest = max((visibility.get(i.id, "visible") for i in report.items), key=GRADESCOPE_VISIBILITIES.index,
+                    default="visible")
     header = (f"{report.lesson} graded under rubric version {report.rubric_version} "
-              f"(sha256 {report.rubric_hash[:12]}){on}: {_number(report.total)} / {_number(report.max_total)}")
-    notes = [f"config: {finding}" for finding in report.config_findings]
-    if not report.complete:
+              f"(sha256 {report.rubric_hash[:12]}){on}"
+              + (f": {_number(report.total)} / {_number(report.max_total)}" if strictest == "visible" else ""))
+    config_held = any(i.kind == "config" and visibility.get(i.id, "visible") != "visible" for i in report.items)
+    notes = [] if config_held else [f"config: {finding}" for finding in report.config_findings]
+    if not report.complete and strictest == "visible":
         notes.append("some items could not be measured; they score 0 until the cases are measured")
     return {
         "score": report.total,
         "execution_time": round(float(execution_time), 3),
         "output": "\n".join([header, *notes]),
+        **({} if strictest == "visible" else {"visibility": strictest}),
         "tests": [
             {
                 "name": f"{item.id}: {item.question}",

@@ -20,7 +20,7 @@ from grader.core.variants import measuring_submissions
 from grader.core.models import Assignment, CaseRun, Course, Grade, Submission
 from grader.services.setup import assignments
 from grader.services.errors import Conflict, NotFound
-from grader.services.submissions.visibility import visibility_of
+from grader.services.submissions.visibility import own_config_runs, readers, visibility_of
 from rubric.exports import csv_text, grades_csv, gradescope_results
 from rubric.scoring import GradeReport
 
@@ -99,7 +99,9 @@ def gradescope(*, session: Session, submission: Submission) -> dict:
     """Gradescope results.json of one graded submission; each item's visibility is the most withholding that an
     assignment of the course for its lesson gives that item (immediate: visible, after_due: after_due_date,
     on_release: after_published), its own assignment or another, as the service withholds it from the student
-    (grader.services.submissions.visibility); an item no assignment holds is visible. Conflict while not graded."""
+    (grader.services.submissions.visibility), and an item whose verdict would tell such an item's answer takes its
+    visibility (`readers`); an item no assignment holds is visible. The results' own output and score follow
+    (rubric.exports.gradescope_results). Conflict while not graded."""
 
     grade = current_grade(session, submission.id)
     if grade is None:
@@ -114,6 +116,14 @@ def gradescope(*, session: Session, submission: Submission) -> dict:
             if _GRADESCOPE_ORDER.index(seen) > _GRADESCOPE_ORDER.index(shown.get(item, "visible")):
                 shown[item] = seen
             shown.setdefault(item, seen)
+    # an item whose verdict would tell a withheld item's answer takes that item's visibility (visibility.readers)
+    runs = submission.case_runs
+    names, kinds = [r.name for r in runs], {r.name: r.kind for r in runs}
+    for seen in reversed(_GRADESCOPE_ORDER[1:]):  # the most withholding first
+        held = [i for i, v in shown.items() if _GRADESCOPE_ORDER.index(v) >= _GRADESCOPE_ORDER.index(seen)]
+        for item in readers(submission.lesson, held, names, kinds, own_config_runs(submission)):
+            if _GRADESCOPE_ORDER.index(shown.get(item, "visible")) < _GRADESCOPE_ORDER.index(seen):
+                shown[item] = seen
     results = gradescope_results(report, grade.execution_s, shown)
     overridden = {i["id"]: i for i in _overridden(grade)}
     for test in results["tests"]:

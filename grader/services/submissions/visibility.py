@@ -28,7 +28,9 @@ from the student (`lesson_withheld`, any part) withholds the runs that could tel
 student's submissions of the lesson: the runs its scoring rule reads by declaration (the lesson's `runs_read`),
 whatever the item's verdict (a hidden item graded one_factor_violation or not_measured still asks about them), and
 whether or not the submission answers it (a checkpoint submission's lesson runs would answer an item of the
-exercises). A shown item reading such a run keeps its score and verdict, its measured values wait with the run.
+exercises). An item whose verdict reads a run of a withheld kind (or, while a config item is withheld, a run of the
+student's own configs) is withheld with them (`readers`, issue 44 hostile pass 6): H3 credited at B3's own tolerance
+answered a withheld B3, and H4's credit on four stop distances bounded the withheld runs' values.
 
 What a run measured, not its name, decides what it tells (issue 44): a run of the submission that measured the same as
 a deciding run is withheld with it (`measurement_twins`): the same content key, measurement or evidence row (a reused
@@ -65,6 +67,8 @@ from grader.core.timezones import iso
 from grader.core.models import Assignment, CaseEvidence, CaseRun, Grade, Submission, User, utcnow
 from grader.services.setup.assignments import counted_for, dates_for, item_ids, penalty_fraction
 from grader.services.identity import access
+from rubric import load_rubric
+from rubric.scoring.scorer import SHEET_CASE_PREFIX
 from rubric.lesson import lesson
 
 
@@ -111,6 +115,57 @@ def runs_answering(lesson_name: str, items: Collection[str], runs: Sequence[str]
     declared = lesson(lesson_name)
     out = {i: declared.runs_read(i, runs) for i in sorted(items)}
     return {i: names for i, names in out.items() if names}
+
+
+def readers(lesson_name: str, items: Collection[str], runs: Sequence[str], kinds: Mapping[str, str],
+            configs: Collection[str] = ()) -> dict[str, set[str]]:
+    """{item id: the items of `items` it is withheld with}: every other item of lesson `lesson_name` whose verdict
+    would tell a withheld item's answer (issue 44, hostile pass 6): one whose rule reads (the lesson's `runs_read`,
+    over the submission's `runs`) a run of a case kind that a withheld item's runs are of, as the kind rule withholds
+    every run of that kind; and, for a withheld config item (decided from the submitted configs), one reading a run of
+    the submission's own configs, whose verdict says whether the one-factor rule voided it. H3 credited on "the high
+    lane is unchanged" at B3's own tolerance, and H2 on "the low lane goes farther", answered a withheld B3; H4's credit
+    on four stop distances bounded the withheld runs' values to 2 cm. An item is withheld with them to keep their
+    answers, not for its own: nothing is withheld for its sake in turn (the runs it reads stay as they were).
+    `configs`: the runs the submission's own configs give, run or not (a config that broke the one-factor rule is
+    never run, and the items reading it are voided: the verdict that tells a withheld config item)."""
+    if not items:
+        return {}
+    declared, rubric = lesson(lesson_name), load_rubric(lesson_name)
+    kind_of = {i.id: i.kind for i in rubric.items}
+    everything = [*runs, *(c for c in configs if c not in runs)]
+    reads = {i: set(declared.runs_read(i, everything)) for i in kind_of}
+    own_configs = set(configs) | {r for r in runs if r not in declared.cases}
+    held: dict[str, set[str]] = {}  # each withheld case kind ("kind:K") or config run ("run:R"), for which items
+    for item in items:
+        for run in reads.get(item, ()):
+            if run in kinds:
+                held.setdefault("kind:" + kinds[run], set()).add(item)
+        if kind_of.get(item) == "config":
+            for run in own_configs:
+                held.setdefault("run:" + run, set()).add(item)
+    out: dict[str, set[str]] = {}
+    for item in kind_of:
+        marks = {"kind:" + kinds[r] for r in reads[item] if r in kinds} | {"run:" + r for r in reads[item]}
+        sources = set().union(*(held.get(m, set()) for m in marks)) - {item}
+        if item not in items and sources:
+            out[item] = sources
+    return out
+
+
+def own_config_runs(submission: Submission) -> list[str]:
+    """The run names the submission's own configs give (its sheet's `configs`, by role), run or not."""
+    return [SHEET_CASE_PREFIX + role for role in ((submission.sheet or {}).get("configs") or {})]
+
+
+def with_readers(lesson_name: str, hidden: Mapping[str, str], runs: Sequence[str],
+                 kinds: Mapping[str, str], configs: Collection[str] = ()) -> dict[str, str]:
+    """`hidden` ({item id: why}) and every item withheld with them (`readers`), saying with which."""
+    out = dict(hidden)
+    for item, sources in sorted(readers(lesson_name, hidden, runs, kinds, configs).items()):
+        why = "; ".join(sorted({hidden[s] for s in sources}))
+        out[item] = f"{why} (its verdict reads the measurements that decide {', '.join(sorted(sources))})"
+    return out
 
 
 def _withheld_by(session: Session, assignment: Assignment, student: User, now: datetime) -> dict[str, str]:
@@ -303,14 +358,17 @@ def _evidence_withheld(item: dict, runs: dict[str, str]) -> dict:
 def shown_report(report: dict, hidden: dict[str, str], runs: list[str] | None = None,
                  twins: Mapping[str, Collection[str]] | None = None,
                  asked: Mapping[str, tuple[str, Collection[str]]] | None = None,
-                 kinds: Mapping[str, str] | None = None) -> dict:
+                 kinds: Mapping[str, str] | None = None, deciding: Mapping[str, str] | None = None) -> dict:
     """The stored report as a student may see it: each withheld item keeps its question, points and the student's
     own prediction, but its score is None and its feedback says when it will be shown; the total counts the shown
     items only and `pending` says which points are still to come. The lab check (its conditions' evidence is
     measured against the same tolerances) is left out until nothing is withheld. Nothing is regraded on release.
     `twins`: the runs that measured the same as each run (`measurement_twins`), withheld with a deciding one; `asked`:
     the lesson's items withheld from the student and the runs that could answer them (`withheld_runs`)."""
-    withheld = withheld_runs(report, hidden, runs if runs is not None else _read_runs(report), twins, asked, kinds)
+    # `deciding`: the withheld items whose runs are withheld with them (default every one); an item withheld only
+    # because its verdict would tell one of them (`readers`) withholds no run of its own
+    withheld = withheld_runs(report, hidden if deciding is None else deciding,
+                             runs if runs is not None else _read_runs(report), twins, asked, kinds)
     if not hidden and not withheld:
         return report
     items, total, shown_max, pending_points = [], 0.0, 0.0, 0.0
@@ -355,6 +413,8 @@ class GradeView:
 
     submission: Submission
     stored: Grade | None
+    # the submission's items withheld from the user: for their own answers (`deciding`) or because their verdicts
+    # would tell one of those (`readers`)
     hidden: dict[str, str] = field(default_factory=dict)
     # every item of the lesson withheld from the submission's student, in any assignment (`lesson_withheld`): the
     # runs that could answer them are withheld here too
@@ -388,7 +448,8 @@ class GradeView:
             return None
         if not self.hidden and not self.lesson_hidden:
             return self.stored.report
-        return shown_report(self.stored.report, self.hidden, self.run_names, self.twins, self.asked, self.kinds)
+        return shown_report(self.stored.report, self.hidden, self.run_names, self.twins, self.asked, self.kinds,
+                            self.deciding)
 
     @cached_property
     def asked(self) -> dict[str, tuple[str, list[str]]]:
@@ -398,6 +459,12 @@ class GradeView:
             return {}
         answering = runs_answering(self.submission.lesson, self.lesson_hidden, self.run_names)
         return {i: (self.lesson_hidden[i], names) for i, names in answering.items()}
+
+    @property
+    def deciding(self) -> dict[str, str]:
+        """The submission's withheld items withheld for their own answers (not only as `readers` of another's): the
+        runs that decide them are withheld with them."""
+        return {i: why for i, why in self.hidden.items() if i in self.lesson_hidden}
 
     @property
     def run_names(self) -> list[str]:
@@ -421,7 +488,7 @@ class GradeView:
         they measured changes), which the report's validator (grader.web.etag.report_state) already covers."""
         if not self.hidden and not self.lesson_hidden:
             return {}
-        return withheld_runs(self.stored.report if self.stored is not None else None, self.hidden, self.run_names,
+        return withheld_runs(self.stored.report if self.stored is not None else None, self.deciding, self.run_names,
                              self.twins, self.asked, self.kinds)
 
     @property
@@ -460,8 +527,13 @@ def grade_view(*, session: Session, submission: Submission, user: User, now: dat
 
     `report=False` defers the grade's report (the largest JSON) until a withheld item needs it masked."""
     lesson_hidden = lesson_withheld(session=session, submission=submission, user=user, now=now or utcnow())
+    shown_with = lesson_hidden
+    if lesson_hidden:  # and every item whose verdict would tell one of them (`readers`)
+        runs = submission.case_runs
+        shown_with = with_readers(submission.lesson, lesson_hidden, [r.name for r in runs],
+                                  {r.name: r.kind for r in runs}, own_config_runs(submission))
     return GradeView(submission=submission, stored=current_grade(session, submission.id, report=report),
-                     hidden=_own_items(submission, lesson_hidden), lesson_hidden=lesson_hidden)
+                     hidden=_own_items(submission, shown_with), lesson_hidden=lesson_hidden)
 
 
 def attempt_standing(session: Session, submission: Submission, user: User, view: GradeView | None = None) -> dict:

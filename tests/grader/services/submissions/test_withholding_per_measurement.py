@@ -41,16 +41,19 @@ def test_the_runs_deciding_a_withheld_item_are_withheld_on_every_surface_until_r
     assert "friction-baseline" not in deciding and untouched, untouched
     leaks = [p for p in x2["measured"].split("; ") + staff["A2"]["measured"].split("; ") if p]
 
-    # The API's grade, results.json and the report page: X2 keeps its score and verdict, not its measured values.
+    # The API's grade, results.json and the report page: X2 reads A2's runs, so its verdict would tell A2's answer
+    # (issue 44, hostile pass 6): it waits with A2, saying so, and counts in the points pending.
     grade = grade_of(api, sid, "alice")
     assert grade.status_code == 200, grade.text
     items = {i["id"]: i for i in grade.json()["items"]}
     assert items["A2"]["verdict"] == "pending"
     mine = items["X2"]
-    assert (mine["score"], mine["verdict"]) == (x2["score"], x2["verdict"])
-    assert (mine["measured"], mine["evidence"]) == ("", None) and set(mine["evidence_withheld"]) == (
-        set(x2["backends"]) & withheld)
-    assert all(items[i] == staff[i] for i in untouched)  # an item reading no withheld run is shown whole
+    assert (mine["score"], mine["verdict"], mine["measured"], mine["evidence"]) == (None, "pending", "", None)
+    assert "its verdict reads the measurements that decide A2" in mine["feedback"], mine
+    assert "X2" in grade.json()["pending"], grade.json()["pending"]
+    # a friction item reads no contact run: shown whole
+    assert all(items[i] == staff[i] for i in ("B1", "B2", "B3", "B4")), [items[i] for i in ("B1", "B2", "B3", "B4")]
+    assert all(items[i] == staff[i] or items[i]["verdict"] == "pending" for i in untouched)
     assert set(grade.json()["withheld_measurements"]) == withheld
     results = _get(api, f"/submissions/{sid}/results.json")
     assert results.status_code == 200 and set(results.json()["withheld_measurements"]) == withheld
@@ -192,7 +195,7 @@ def test_a_checkpoint_submission_withholds_the_lesson_runs_an_item_withheld_in_a
     """Issue 44, finding 5-A: withholding is per student and lesson. With B3 withheld until the exercises are
     released, alice's checkpoint submission (graded at once on the lesson's runs, C1-C8 shown) showed friction-baseline
     and friction-table-0.30, whose stops answer B3. They are withheld there too, with the colour-swapped twin; C5
-    keeps its score while its measured values wait with the run; the release shows them."""
+    waits with B3 (its verdict reads the friction runs, hostile pass 6); the release shows them."""
     exercises = create(api, title="Exercises", part="exercises", item_visibility={"B3": "on_release"}).json()["id"]
     checkpoints = create(api).json()["id"]  # immediate: nothing of it withheld
     submitted = submit(api, checkpoints)
@@ -200,11 +203,13 @@ def test_a_checkpoint_submission_withholds_the_lesson_runs_an_item_withheld_in_a
     sid = submitted.json()["id"]
     grade = grade_of(api, sid, "alice").json()
     items = {i["id"]: i for i in grade["items"]}
-    assert set(items) == {f"C{n}" for n in range(1, 9)} and "pending" not in {i["verdict"] for i in items.values()}
+    # the checkpoints reading a friction run wait with B3: their verdicts would tell it; the others are shown
+    pending = {i for i, item in items.items() if item["verdict"] == "pending"}
+    assert set(items) == {f"C{n}" for n in range(1, 9)} and {"C5", "C6"} <= pending, pending
+    assert all("decide B3" in items[i]["feedback"] for i in pending), items
     _withheld_everywhere(api, sid, FRICTION_RUNS, "B3, shown once “Exercises” is released")
     staff_c5 = {i["id"]: i for i in grade_of(api, sid, "prof").json()["items"]}["C5"]
-    assert (items["C5"]["score"], items["C5"]["verdict"]) == (staff_c5["score"], staff_c5["verdict"])
-    assert items["C5"]["evidence"] is None and items["C5"]["evidence_withheld"] == ["friction-baseline"]
+    assert (items["C5"]["score"], items["C5"]["evidence"]) == (None, None)
     assert items["C1"] == {i["id"]: i for i in grade_of(api, sid, "prof").json()["items"]}["C1"]  # reads N4 only
 
     assert set(grade["withheld_measurements"]) == FRICTION_RUNS
@@ -432,3 +437,73 @@ def test_which_runs_decide_an_item_follows_its_kind_and_the_runs_its_rule_read()
     assert "measured X2" not in shown["X2"]["feedback"] and "N1 decides A2, " + why in shown["X2"]["feedback"]
     assert shown["A5"]["expected"] == "expected A5" and shown["A5"]["measured"] == ""  # a conceptual answer stays
     assert shown["B2"] == report["items"][3]  # reads no deciding run: shown whole
+
+
+def test_an_item_whose_verdict_would_tell_a_withheld_one_waits_with_it_on_every_surface(api, measured):
+    """Issue 44, hostile pass 6 (high): with B3 withheld, H3 credited on "the high lane is unchanged" at B3's own
+    tolerance and H2 on "the low lane goes farther": B3's answer, in one submission; H4's credit on four stop
+    distances bounded the withheld runs' values to 2 cm over a few. An item whose rule reads a run of a withheld
+    item's kind waits with it, saying with which; the totals count neither; a contact item is shown whole; staff
+    see all."""
+    aid = create(api, part="exercises", item_visibility={"B3": "on_release"}).json()["id"]
+    sid = free_graded(api, measured, complete=True)
+    staff = {i["id"]: i for i in grade_of(api, sid, "prof").json()["items"]}
+    assert all(staff[i]["verdict"] == "credit" for i in ("H2", "H3", "H4")), staff
+    grade = grade_of(api, sid, "alice").json()
+    items = {i["id"]: i for i in grade["items"]}
+    for i in ("B3", "H1", "H2", "H3", "H4"):
+        assert (items[i]["score"], items[i]["verdict"], items[i]["expected"]) == (None, "pending", ""), items[i]
+    assert all("decide B3" in items[i]["feedback"] for i in ("H1", "H2", "H3", "H4"))
+    assert items["A1"] == staff["A1"]  # reads N4 alone: no friction run
+    shown = [i for i, item in items.items() if item["verdict"] != "pending"]
+    assert grade["total"] == round(sum(staff[i]["score"] for i in shown), 6)
+    assert all(i in grade["pending"] for i in ("B3", "H2", "H3", "H4")), grade["pending"]
+    row = _get(api, f"/v1/submissions/{sid}").json()
+    assert row["total"] == grade["total"]
+    results = _get(api, f"/submissions/{sid}/results.json").json()
+    assert {i["id"]: i["verdict"] for i in results["items"]}["H3"] == "pending"
+    page = html.unescape(_get(api, f"/submissions/{sid}").text)
+    assert staff["H3"]["feedback"] not in page and staff["H4"]["feedback"] not in page
+
+    # Released: every item as staff see it.
+    assert api.client.post(f"/v1/assignments/{aid}/release", headers=api.as_("prof")).status_code == 200
+    assert {i["id"]: i for i in grade_of(api, sid, "alice").json()["items"]} == staff
+
+
+def test_the_gradescope_export_gives_a_reader_of_a_withheld_items_runs_its_visibility(api, measured):
+    """Issue 44, hostile pass 6 (high): with B3 on release, the export for Gradescope gave H3 "visible" with B3's
+    evidence ("high: 0.2240 -> 0.2241 m") in its output, and a visible header with the total counting B3. Each
+    test whose verdict reads a withheld item's runs takes its visibility; while any test waits, the results' own
+    output leaves the total out and the results take the most withholding visibility."""
+    create(api, part="exercises", item_visibility={"B3": "on_release"})
+    sid = free_graded(api, measured, complete=True)
+    results = _get(api, f"/v1/submissions/{sid}/gradescope.json", "prof")
+    assert results.status_code == 200, results.text
+    doc = results.json()
+    tests = {t["name"].split(":", 1)[0]: t for t in doc["tests"]}
+    assert all(tests[i]["visibility"] == "after_published" for i in ("B3", "H1", "H2", "H3", "H4")), tests
+    assert tests["A1"]["visibility"] != "after_published"  # the assignment's own, read no withheld run
+    assert doc["visibility"] == "after_published" and " / " not in doc["output"].splitlines()[0], doc["output"]
+    b3 = {i["id"]: i for i in grade_of(api, sid, "prof").json()["items"]}["B3"]
+    told = [p for p in b3["measured"].split("; ") if p]
+    assert told and not [p for t in doc["tests"] if t["visibility"] == "visible" for p in told if p in t["output"]]
+
+
+def test_while_a_config_item_is_withheld_no_other_item_says_whether_the_one_factor_rule_voided_it(api, measured):
+    """Issue 44, hostile pass 6 (medium): with H5 (does the table exercise change one factor?) withheld, a table
+    exercise changing the cube's density too voided H1, H2 and B3 with the finding "too many inputs changed at once;
+    ... cube_rho: 500.0 -> 800.0": H5's answer. Every item reading a run of the student's own configs waits with
+    H5."""
+    sheet = reference_sheet()
+    sheet["configs"]["table_exercise"]["cube_rho"] = 800.0
+    create(api, part="exercises", item_visibility={"H5": "on_release"})
+    sid = free_graded(api, measured, sheet=sheet)
+    staff = {i["id"]: i for i in grade_of(api, sid, "prof").json()["items"]}
+    voided = [i for i, item in staff.items() if item["verdict"] == "one_factor_violation"]
+    assert voided, staff
+    grade = grade_of(api, sid, "alice")
+    text = grade.text + html.unescape(_get(api, f"/submissions/{sid}").text)
+    items = {i["id"]: i for i in grade.json()["items"]}
+    assert all(items[i]["verdict"] == "pending" and "decide H5" in items[i]["feedback"] for i in voided), [(i, staff[i]["backends"], items[i]["verdict"], items[i]["feedback"]) for i in voided]
+    assert not [i for i in items.values() if i["verdict"] == "one_factor_violation"]
+    assert "too many inputs changed at once" not in text
