@@ -46,6 +46,9 @@ def pytest_report_header(config):
     return None if seed is None else f"tests shuffled with --shuffle-seed={seed}"
 
 
+# tryfirst: pytest-xdist's worker plugin reads the xdist_group markers in its own pytest_collection_modifyitems, so
+# the markers added here must be there before it runs (registered after this conftest, it ran first).
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """Under pytest-xdist (`make test`: --dist loadgroup), a module with an `integration` or `slow` test stays whole on
     one test process: its tests share module fixtures (a second host, a private broker, a browser walk's pages, runs
@@ -83,6 +86,25 @@ def pytest_collection_modifyitems(config, items):
         if item.path in heavy and not item.get_closest_marker("xdist_group"):
             name = item.path.stem if "integration" in item.path.parts else str(item.path.relative_to(config.rootpath))
             item.add_marker(pytest.mark.xdist_group(name))
+    if getattr(config.option, "loadgroup", False):  # an xdist test process under --dist loadgroup
+        for item in items:
+            _group_in_nodeid(item)
+
+
+def _group_in_nodeid(item) -> None:
+    """Append "@group" to the item's nodeid, which is how xdist's loadgroup scheduler learns an item's group.
+
+    pytest-xdist 3.8 does it by setting `item._nodeid`, but pytest 9.2's `nodeid` reads `item._id` (a NodeId): its
+    suffix was lost and no group ever formed, so every module was scheduled test by test. 2026-12-07, `make test`'s
+    schedule: test_discrepancy's 64-bit runs and test_case_process's isolated runs were each built on both test
+    processes, and the three "variants" modules ran their stack on both. Done here the way xdist means it."""
+    groups = sorted({str(mark.args[0] if mark.args else mark.kwargs.get("name", "default"))
+                     for mark in item.iter_markers("xdist_group")})
+    if not groups or item.nodeid.endswith("@" + "_".join(groups)) or not hasattr(item, "_id"):
+        return  # no group; already suffixed; or a pytest whose nodeid xdist's own suffix reaches
+    from _pytest.nodeid import NodeId
+
+    item._id = NodeId.parse(f"{item.nodeid}@{'_'.join(groups)}")
 
 
 @pytest.fixture(scope="session")
@@ -92,30 +114,45 @@ def measured(tmp_path_factory, worker_id) -> dict[str, CaseResult]:
     Under pytest-xdist the first test process to need them measures them into a folder all processes share, under a
     file lock; the others wait for it and read the very same runs back through `load_result`, which checks each one
     as it checked the first time (arrays, provenance, discretization): one measurement, never a substitute."""
+    return _shared_runs(tmp_path_factory, worker_id, "measured", list(BASELINE_CASES.values()), mode="warm")
+
+
+@pytest.fixture(scope="session")
+def isolated_contact(tmp_path_factory, worker_id) -> dict[str, CaseResult]:
+    """N1-N4, each in its own fresh process (the lesson's contract), two at a time: once per test run, shared as
+    `measured` is. tests/worker/test_case_process and tests/rubric/test_discrepancy each ran these four processes for
+    their own module (2026-12-07: 60-100 s of CPU each time on the 2-core machine)."""
+    from rubric import CONTACT_CASES, get_case
+
+    return _shared_runs(tmp_path_factory, worker_id, "isolated", [get_case(n) for n in CONTACT_CASES],
+                        mode="isolated", jobs=2)
+
+
+def _shared_runs(tmp_path_factory, worker_id, name: str, specs: list, *, mode: str, jobs: int = 1):
+    """Run `specs` once per test run (see `measured`); every run must succeed on real Genesis."""
     from filelock import FileLock
 
     from worker.case_process import load_result
 
     if worker_id == "master":
-        out = tmp_path_factory.mktemp("measured")
-        return _measured_into(out)
-    shared = tmp_path_factory.getbasetemp().parent / "measured"
+        return _runs_into(tmp_path_factory.mktemp(name), specs, mode, jobs)
+    shared = tmp_path_factory.getbasetemp().parent / name
     with FileLock(str(shared) + ".lock"):
         done = shared / "done.json"
         if not done.exists():
-            results = _measured_into(shared)
+            results = _runs_into(shared, specs, mode, jobs)
             done.write_text(json.dumps({name: r.wall_s for name, r in results.items()}))
             return results
     walls = json.loads(done.read_text())
-    results = {name: load_result(spec, shared / name, exit_status=0, mode="warm", wall_s=walls[name])
-               for name, spec in BASELINE_CASES.items()}
+    results = {spec.name: load_result(spec, shared / spec.name, exit_status=0, mode=mode, wall_s=walls[spec.name])
+               for spec in specs}
     failed = {name: r.error for name, r in results.items() if not r.ok}
-    assert not failed, f"baseline cases measured by another test process do not read back: {failed}"
+    assert not failed, f"cases run by another test process do not read back: {failed}"
     return results
 
 
-def _measured_into(out) -> dict[str, CaseResult]:
-    results = run_cases(BASELINE_CASES.values(), out, mode="warm")
+def _runs_into(out, specs: list, mode: str, jobs: int) -> dict[str, CaseResult]:
+    results = run_cases(specs, out, mode=mode, jobs=jobs)
     failed = {name: r.error for name, r in results.items() if not r.ok}
-    assert not failed, f"baseline cases failed on real Genesis: {failed}"
+    assert not failed, f"cases failed on real Genesis: {failed}"
     return results

@@ -129,12 +129,11 @@ def test_a_failed_run_is_refused_not_compared():
 # --- real Genesis: warm vs isolated --------------------------------------------------------------------------
 
 @pytest.fixture(scope="module")
-def isolated(tmp_path_factory):
-    """N1-N4, each in its own fresh process (the lesson's contract), two at a time."""
-    out = tmp_path_factory.mktemp("isolated")
-    results = run_cases([get_case(n) for n in CONTACT_CASES], out, mode="isolated", jobs=2)
-    assert all(r.ok for r in results.values()), {n: r.error for n, r in results.items()}
-    return results
+def isolated(isolated_contact):
+    """N1-N4, each in its own fresh process (the lesson's contract), two at a time: the session's runs
+    (tests/conftest.py), which tests/worker/test_case_process reads too."""
+    assert all(r.ok for r in isolated_contact.values()), {n: r.error for n, r in isolated_contact.items()}
+    return isolated_contact
 
 
 @pytest.mark.slow

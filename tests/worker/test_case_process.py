@@ -7,16 +7,16 @@ import numpy as np
 import pytest
 
 from rubric import CONTACT_CASES, get_case, with_backend
-from worker import WarmCaseProcess, run_case, run_cases
+from worker import WarmCaseProcess, run_case
 
 pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
-def isolated(tmp_path_factory):
-    """N1-N4, each in its own fresh process (the lesson's contract), two at a time."""
-    out = tmp_path_factory.mktemp("isolated")
-    return run_cases([get_case(n) for n in CONTACT_CASES], out, mode="isolated", jobs=2)
+def isolated(isolated_contact):
+    """N1-N4, each in its own fresh process (the lesson's contract), two at a time: the session's runs
+    (tests/conftest.py), which tests/rubric/test_discrepancy compares too."""
+    return isolated_contact
 
 
 def test_warm_and_isolated_modes_give_identical_arrays(isolated, measured):
