@@ -41,7 +41,8 @@ def case_runs_public(submission: Submission, session: Session, user: User) -> li
     withheld = grade_view(session=session, submission=submission, user=user, report=False).withheld_runs
     runs = [CaseRunPublic.model_validate(r) for r in submission.case_runs]
     hidden = {"provenance": None, "metrics": None, "content_key": None, "measurement_id": None,
-              "reused_from_id": None, "wall_s": None, "error": None, "started_at": None, "finished_at": None}
+              "reused_from_id": None, "wall_s": None, "error": None, "started_at": None, "finished_at": None,
+              "tries": None}
     return [r.model_copy(update=hidden) if r.name in withheld else r for r in runs]
 
 

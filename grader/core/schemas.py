@@ -73,7 +73,8 @@ class CaseRunPublic(BaseModel):
     status: str
     result_status: str | None
     delivery: int = Field(description="Message number: each re-send makes every older message stale")
-    tries: int
+    tries: int | None = Field(description="Times a case process ran it (None where its measurements are withheld "
+                                          "from the reader: 0 would say it reused a measurement)")
     content_key: str | None
     reused_from_id: int | None = Field(description="The case run whose measurement this one reused, if any")
     measurement_id: int | None
@@ -177,7 +178,8 @@ class EventPublic(BaseModel):
     case_run_id: int | None
     state: str
     detail: str | None
-    at: UtcDateTime
+    at: UtcDateTime | None = Field(description="When (None for a run whose measurements are withheld from the "
+                                               "reader: its times would tell how long it ran and whether it reused)")
 
 
 class Health(BaseModel):

@@ -150,7 +150,10 @@ def series_json(request: Request, submission_id: int, session: SessionDep, user:
     # part of the validator, like the report's.
     grade = grade_view(session=session, submission=submission, user=user, report=False)
     # Built once per state of its runs (and reader) while the submission is finished: a report view asks again.
+    # a withheld run's reuse and end time would be guessed from the tag: its re-sends say it changed instead
+    withheld = grade.withheld_runs
     tag = etag.etag_of("series", [user.id, submission.id, chart_series.SHAPE, *[
+        [r.id, r.status, r.result_status, r.delivery] if r.name in withheld else
         [r.id, r.status, r.result_status, r.reused_from_id, str(r.finished_at)] for r in submission.case_runs]],
         sorted(grade.hidden.items()), sorted(grade.lesson_hidden.items()),
         grade.stored.id if grade.stored is not None else None) \

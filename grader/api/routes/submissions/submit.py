@@ -12,6 +12,7 @@ from grader.api.responses import errors
 from grader.api.views import case_runs_public, grade_history_public, grade_public, submission_public
 from grader.core.grades import grade_history
 from grader.core.models import Event
+from grader.core.states import CaseRunState
 from grader.core.schemas import CaseRunPublic, EventPublic, GradeHistoryEntry, GradePublic, SubmissionCreate, SubmissionPublic
 from grader.services.submissions import submit as submissions
 from grader.services.errors import Conflict
@@ -107,9 +108,13 @@ def list_case_runs(submission: SubmissionDep, session: SessionDep, user: Current
 def list_events(submission: SubmissionDep, session: SessionDep, user: CurrentUser):
     """Every timestamped state change of the submission and its case runs. A run whose measurements are withheld
     from the caller (GradeView.withheld_runs) keeps its states and times, not its details: how long it took, its
-    error and which measurement it reused would match it to another run (issue 44, hostile pass 5)."""
+    error and which measurement it reused would match it to another run (issue 44, hostile pass 5), nor its times or
+    its running state (pass 6)."""
     withheld = grade_view(session=session, submission=submission, user=user, report=False).withheld_runs
     ids = {r.id for r in submission.case_runs if r.name in withheld}
     events = session.scalars(select(Event).where(Event.submission_id == submission.id).order_by(Event.id)).all()
-    return [EventPublic.model_validate(e).model_copy(update={"detail": "withheld"})
-            if e.case_run_id in ids and e.detail else EventPublic.model_validate(e) for e in events]
+    # a withheld run's events keep their states, in order, not their times (running -> done is its wall time, and a
+    # reused run has no running) nor details; its "running" is left out, so a reuse looks like a run
+    return [EventPublic.model_validate(e).model_copy(update={"detail": "withheld" if e.detail else None, "at": None})
+            if e.case_run_id in ids else EventPublic.model_validate(e) for e in events
+            if not (e.case_run_id in ids and e.state == CaseRunState.RUNNING)]

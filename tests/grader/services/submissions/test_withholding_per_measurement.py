@@ -320,6 +320,10 @@ def test_a_students_own_config_of_a_withheld_runs_kind_is_withheld_whatever_it_m
     ids = {r["id"]: r["name"] for r in listed.values()}
     events = _get(api, f"/v1/submissions/{sid}/events").json()
     assert all(e["detail"] in (None, "withheld") for e in events if ids.get(e["case_run_id"]) in withheld)
+    # nor their times, nor a running state a reused run would lack (pass 6), nor the tries (0: reused)
+    mine = [e for e in events if ids.get(e["case_run_id"]) in withheld]
+    assert mine and all(e["at"] is None and e["state"] != "running" for e in mine), mine
+    assert all(listed[r]["tries"] is None for r in withheld) and listed["friction-baseline"]["tries"] is not None
     staff_events = _get(api, f"/v1/submissions/{sid}/events", "prof").json()
     assert any(e["detail"] not in (None, "withheld") for e in staff_events if ids.get(e["case_run_id"]) in withheld)
     # nor on the progress page's JSON and its rendered rows: the state stays, the time, error and reuse do not
