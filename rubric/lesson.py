@@ -14,6 +14,7 @@ distribution. The declaration says everything a lesson owns:
                       (worker.scene_kit says what it provides; the runner hands it the initialised Genesis),
                       imported by name inside the case process alone
   warm_up_cases       the cases a warm case process runs first, one per scene structure
+  figures             the module drawing its PNG figures (a grader check's report, a backend audit)
   cases               its baseline case table; check_cases the names its lab check runs
   scoring_rules       {rule name: scoring function}: every rubric item's `check` must name one
   grade_sheet, cases_to_run, evaluate_check, verdict_line
@@ -41,6 +42,8 @@ from typing import Any
 
 ENTRY_POINTS = "l03_grader.lessons"
 NAME_PATTERN = r"^L[0-9]{2}$"
+# A submission's run of a student's own config is named after its role in the sheet: "sheet.extension".
+SHEET_CASE_PREFIX = "sheet."
 # English is the language every text is written in; the others are translations beside the rubric (NAME.LANG.yaml).
 SOURCE_LANGUAGE = "en"
 
@@ -72,6 +75,10 @@ class Lesson:
     # Names in `cases` a warm case process runs before any real case, one per scene structure its cases use, so a
     # first submission builds no scene (worker.warm_process.warm_up)
     warm_up_cases: Sequence[str] = ()
+    # The module drawing its figures as PNGs, imported by name where figures are drawn (worker.figures):
+    # lab_figures(results, out_dir, *, cache) for a grader check's report, draw_comparison(a, b, comparison, folder)
+    # for a backend audit. Empty: it draws none.
+    figures: str = ""
     # Rubric versions kept readable for the grades stored under them but never used to grade again: their items may
     # name rules the lesson no longer has.
     archived_versions: Sequence[str] = ()
@@ -169,5 +176,5 @@ def _checked(declared, origin: str, name: str | None) -> Lesson:
     return dataclasses.replace(declared, origin=origin)
 
 
-__all__ = ["ENTRY_POINTS", "Lesson", "LessonNotFound", "SOURCE_LANGUAGE", "lesson", "lesson_names", "lesson_of_kind",
+__all__ = ["ENTRY_POINTS", "Lesson", "LessonNotFound", "SHEET_CASE_PREFIX", "SOURCE_LANGUAGE", "lesson", "lesson_names", "lesson_of_kind",
            "load_lesson", "parse_spec"]

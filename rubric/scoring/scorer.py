@@ -27,6 +27,7 @@ from ..check import CheckOutcome
 from ..guards import gradable
 from ..metrics import ContactMetrics, FrictionMetrics, LaneMetrics
 from ..one_factor import ConfigFinding, lesson_cases, one_factor_findings
+from ..lesson import SHEET_CASE_PREFIX
 from ..results import CaseResult
 from ..rubrics import Item, Rubric, load_rubric, version_key
 from ..sheet import PredictionSheet, answered
@@ -35,7 +36,6 @@ from ..variants import CaseSet, Variant, complete_parameters
 from ..variants.texts import item_question
 
 Verdict = Literal["credit", "no_credit", "inconclusive", "one_factor_violation", "not_measured"]
-SHEET_CASE_PREFIX = "sheet."
 # Lesson cases every sheet is graded on (when the sheet does not replace them with its own config). The lab check
 # (rubric.check) needs N1-N4 and both friction runs, so friction-table-0.30 is here although no item reads it: the
 # check stored with each grade is then evaluated on the submission's own runs. Measurements are reused across

@@ -213,11 +213,23 @@ def of_course(*, session: Session, course: Course) -> list[Assignment]:
                                 .order_by(Assignment.due_at, Assignment.id)))
 
 
+@cache
+def always_shown(lesson: str) -> frozenset[str]:
+    """The lesson's config items (decided from the student's own configs by the one-factor rule): shown at once
+    whatever an assignment says, since the sheet form's Check tells their answer before anything is submitted, and
+    which of the student's configs run tells it after (issue 44, hostile pass 7)."""
+    return frozenset(i.id for i in load_rubric(lesson).items if i.kind == "config")
+
+
 def _strangers(lesson: str, part: str, item_visibility: dict | None) -> list[dict[str, str]]:
-    """Each per-item visibility that names no item of the assignment, as a field error."""
+    """Each per-item visibility that names no item of the assignment, or withholds a config item, as a field error."""
     held = item_ids(lesson, part)
-    return [{"field": f"item_visibility.{item}", "rule": f"not an item of this assignment ({part}: {', '.join(held)})"}
-            for item in item_visibility or {} if item not in held]
+    errors = [{"field": f"item_visibility.{item}", "rule": f"not an item of this assignment ({part}: {', '.join(held)})"}
+              for item in item_visibility or {} if item not in held]
+    return errors + [
+        {"field": f"item_visibility.{item}",
+         "rule": "a config item is always shown: the sheet form's Check tells its answer before submitting"}
+        for item, seen in (item_visibility or {}).items() if item in always_shown(lesson) and seen != "immediate"]
 
 
 def _validated(model: type[BaseModel], raw: dict, detail: str) -> dict:

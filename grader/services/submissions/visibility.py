@@ -65,15 +65,17 @@ from grader.core.grades import current_grade
 from grader.core.states import TERMINAL, CountedAttempt, Visibility
 from grader.core.timezones import iso
 from grader.core.models import Assignment, CaseEvidence, CaseRun, Grade, Submission, User, utcnow
-from grader.services.setup.assignments import counted_for, dates_for, item_ids, penalty_fraction
+from grader.services.setup.assignments import always_shown, counted_for, dates_for, item_ids, penalty_fraction
 from grader.services.identity import access
 from rubric import load_rubric
-from rubric.scoring.scorer import SHEET_CASE_PREFIX
-from rubric.lesson import lesson
+from rubric.lesson import SHEET_CASE_PREFIX, lesson
 
 
 def visibility_of(assignment: Assignment, item_id: str) -> str:
-    """The item's own visibility where the assignment sets one, else the assignment's."""
+    """The item's own visibility where the assignment sets one, else the assignment's; a config item is always shown
+    (`always_shown`: the sheet form's Check tells its answer before submitting, and which configs ran after)."""
+    if item_id in always_shown(assignment.lesson):
+        return Visibility.IMMEDIATE
     return (assignment.item_visibility or {}).get(item_id, assignment.visibility)
 
 
@@ -123,9 +125,9 @@ def readers(lesson_name: str, items: Collection[str], runs: Sequence[str], kinds
     would tell a withheld item's answer (issue 44, hostile pass 6): one whose rule reads (the lesson's `runs_read`,
     over the submission's `runs`) a run of a case kind that a withheld item's runs are of, as the kind rule withholds
     every run of that kind; and, for a withheld config item (decided from the submitted configs), one reading a run of
-    the submission's own configs, whose verdict says whether the one-factor rule voided it. H3 credited on "the high
-    lane is unchanged" at B3's own tolerance, and H2 on "the low lane goes farther", answered a withheld B3; H4's credit
-    on four stop distances bounded the withheld runs' values to 2 cm. An item is withheld with them to keep their
+    the submission's own configs, whose verdict says whether the one-factor rule voided it. An item credited at a
+    withheld item's own tolerance on the same runs answered it, and one credited on four stop distances bounded the
+    withheld runs' values to 2 cm (docs/instructor.md gives the items). An item is withheld with them to keep their
     answers, not for its own: nothing is withheld for its sake in turn (the runs it reads stay as they were).
     `configs`: the runs the submission's own configs give, run or not (a config that broke the one-factor rule is
     never run, and the items reading it are voided: the verdict that tells a withheld config item)."""
