@@ -41,6 +41,7 @@ LESSON = Lesson(
     files=LESSONS_DIR,
     case_kinds={"contact": ContactCase, "friction": FrictionCase},
     scenes="lessons.l03.scenes",
+    figures="lessons.l03.figures",
     # every scene structure of its cases (the friction cases share one; each contact discretisation is its own), the
     # two it always had first
     warm_up_cases=("N1", "friction-baseline", "N2", "N3", "N4", "N5"),

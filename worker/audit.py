@@ -148,7 +148,7 @@ def _violation_entry(session: Session, run: CaseRun, reason: str | None) -> Audi
 
 def _draw(a, b, comparison, folder: Path) -> list[str]:
     # lazy: matplotlib (~0.7 s) loads only when an audit draws, not in every Celery worker (bench memory target)
-    from worker.figures.audit import draw_comparison
+    from worker.figures import draw_comparison
 
     try:
         return [p.name for p in draw_comparison(a, b, comparison, folder)]

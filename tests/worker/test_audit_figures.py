@@ -1,4 +1,4 @@
-"""worker.figures.audit on real Genesis results: both runs overlaid with their difference, as decodable PNGs in the
+"""lessons.l03.figures.audit (a backend audit's figures, drawn through worker.figures.draw_comparison) on real Genesis results: both runs overlaid with their difference, as decodable PNGs in the
 output folder, each run named by its backend / precision / mode and the classification in the title."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import pytest
 from PIL import Image
 
 from rubric import compare_cases
-from worker.figures.audit import draw_comparison
+from worker.figures import draw_comparison  # the service's way: by the lesson declaring the runs' kind
 
 pytestmark = pytest.mark.slow
 

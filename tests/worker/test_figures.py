@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from worker import figures
+from lessons.l03 import figures
 from rubric import CONTACT_CASES, CaseResult, case_metrics, get_case, with_backend
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

@@ -1,5 +1,5 @@
 """A submission's figures, two ways, on the same stored runs (issue 24 item 2): (a) drawn on the server as the lab's
-18 PNGs (worker.figures.lab_figures, what `complete_grade` did), (b) served as the compact JSON series the report's
+18 PNGs (worker.figures.lab_figures, L03's figures, what `complete_grade` did), (b) served as the compact JSON series the report's
 browser charts draw (grader.services.reports.series). For each: server CPU seconds and bytes per submission. And the
 report's completion: POST to the lab check stored, against the cases' own time (target: within 1.5x)."""
 

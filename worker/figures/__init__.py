@@ -1,69 +1,41 @@
-"""L03 lab-report figures: contact trajectories, clearance, friction lanes and camera frames or schematics, as PNGs.
-
-Every function writes into a caller-given output folder (never the repository) and returns the paths it wrote.
-Figures are built on `matplotlib.figure.Figure` with the Agg canvas, so no pyplot global state leaks between calls
-or threads. Each figure names its cases, backend and engine version in a footer: a PNG copied out of its report
-must still say where its numbers came from. Numbers drawn (stops, pair frictions, separation, first contact) are
-the run's stored metrics (rubric.metrics), computed once where the case ran.
-
-Modules: common (canvas, footer, metrics), contact (Part A), friction (Part B), frames (camera or schematic),
-cache (a figure drawn once per distinct input, copied after).
-"""
+"""Figures as PNGs, drawn by the lesson that owns the cases (rubric.lesson.Lesson.figures names its module, e.g.
+lessons/l03/figures): a grader check's offline report (`lab_figures`) and a backend audit's comparison of two runs
+(`draw_comparison`). The lesson is the one that declares the results' case kind (rubric.lesson.lesson_of_kind).
+Here: the dispatch and `cache` (a figure drawn once per distinct input, copied after), which any lesson's figures use.
+Matplotlib loads with the lesson's module, only where figures are drawn."""
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Mapping
 from pathlib import Path
+from types import ModuleType
 
-from rubric import CaseResult, ContactCase, FrictionCase
+from rubric import CaseResult
+from rubric.lesson import lesson_of_kind
 
 from .cache import FigureCache
-from .common import CAMERA_TITLE, DPI, SCHEMATIC_TITLE, provenance_line
-from .contact import clearance_figure, contact_figures, contact_trajectory_figure
-from .frames import frames_figure, has_frames
-from .friction import friction_comparison_figure, friction_figure, stop_note
 
 
-def lab_figures(results: Mapping[str, CaseResult], out_dir: str | Path, *,
-                baseline: str = "friction-baseline", cache: FigureCache | None = None) -> list[Path]:
-    """Every L03 figure the results support: contact, per friction run, frames, and the baseline compared with
-    every other friction run (the lab's table-0.30 run, a student's own table exercise, the colour-swapped control),
-    whatever each is named. With a cache, a figure whose inputs were drawn before is copied, not drawn."""
-    out_dir = Path(out_dir)
-    cache = cache or FigureCache(None)
-    paths = []
-    contact = [r for r in results.values() if isinstance(r.spec, ContactCase)]
-    if contact:
-        paths += [
-            cache.figure("contact_trajectories", contact, out_dir,
-                         lambda: contact_trajectory_figure(contact, out_dir / "contact_trajectories.png")),
-            cache.figure("contact_clearance", contact, out_dir,
-                         lambda: clearance_figure(contact, out_dir / "contact_clearance.png")),
-        ]
-    friction = [r for r in results.values() if isinstance(r.spec, FrictionCase)]
-    paths += [cache.figure("friction", [r], out_dir, lambda r=r: friction_figure(r, out_dir)) for r in friction]
-    if baseline in results:
-        base = results[baseline]
-        paths += [cache.figure("friction_comparison", [base, r], out_dir,
-                               lambda r=r: friction_comparison_figure(base, r, out_dir))
-                  for r in friction if r.spec.name != baseline]
-    paths += [cache.figure("frames", [r], out_dir, lambda r=r: frames_figure(r, out_dir)) for r in results.values()]
-    return paths
+def figures_of(kind: str) -> ModuleType:
+    """The figures module of the lesson declaring case kind `kind`; LookupError where it declares none."""
+    declared = lesson_of_kind(kind)
+    if not declared.figures:
+        raise LookupError(f"lesson {declared.name} declares no figures")
+    return importlib.import_module(declared.figures)
 
 
-__all__ = [
-    "CAMERA_TITLE",
-    "FigureCache",
-    "DPI",
-    "SCHEMATIC_TITLE",
-    "clearance_figure",
-    "contact_figures",
-    "contact_trajectory_figure",
-    "frames_figure",
-    "friction_comparison_figure",
-    "friction_figure",
-    "has_frames",
-    "lab_figures",
-    "provenance_line",
-    "stop_note",
-]
+def lab_figures(results: Mapping[str, CaseResult], out_dir: str | Path, *, cache: FigureCache | None = None,
+                **options) -> list[Path]:
+    """Every figure the results support, by their lesson (none without results)."""
+    if not results:
+        return []
+    return figures_of(next(iter(results.values())).spec.kind).lab_figures(results, out_dir, cache=cache, **options)
+
+
+def draw_comparison(a: CaseResult, b: CaseResult, comparison, folder: Path) -> list[Path]:
+    """A backend audit's two runs of one case overlaid with their difference, by their lesson."""
+    return figures_of(a.spec.kind).draw_comparison(a, b, comparison, folder)
+
+
+__all__ = ["FigureCache", "draw_comparison", "figures_of", "lab_figures"]

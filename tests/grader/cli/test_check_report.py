@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from grader import check_report as report
-from worker import figures
+from lessons.l03 import figures
 from rubric import CaseResult, case_metrics, get_case
 from tests.factories import heavy_imports
 
@@ -154,4 +154,4 @@ def test_missing_figure_is_stated(tmp_path, measured):
 
 
 def test_figures_and_report_never_import_genesis_or_torch():
-    assert heavy_imports(["worker.figures", "grader.check_report"]) == []
+    assert heavy_imports(["worker.figures", "lessons.l03.figures", "grader.check_report"]) == []
