@@ -68,7 +68,8 @@ class RunProgress:
     running_s: float | None  # how long it has been running; None unless running
     wall_s: float | None
     error: str | None
-    withheld: bool = False  # its measurements are withheld from the reader: wall_s, error and reuse are not shown
+    withheld: bool = False  # its measurements are withheld from the reader: wall_s, error, reuse and time running
+    # are not shown
 
     @property
     def finished(self) -> bool:
@@ -210,7 +211,8 @@ def _row(run: CaseRun, place: tuple[int, int] | None, estimate: Estimate | None,
     return RunProgress(id=run.id, name=run.name, kind=run.kind, backend=run.backend, status=run.status,
                        result_status=run.result_status, reused=run.reused_from_id is not None and not withheld,
                        position=place[0] if place else None, waiting=place[1] if place else None,
-                       estimate=estimate, running_s=_elapsed(run.started_at, now) if running else None,
+                       # a withheld run's time running would tell its wall time, and a reuse (never running)
+                       estimate=estimate, running_s=_elapsed(run.started_at, now) if running and not withheld else None,
                        wall_s=None if withheld else run.wall_s, error=None if withheld else run.error,
                        withheld=withheld)
 

@@ -249,13 +249,26 @@ def withheld_runs(report: dict | None, hidden: dict[str, str], runs: list[str],
                 decides.setdefault(run, set()).add(item_id)
     out = {run: f"decides {', '.join(sorted(ids))}, " + "; ".join(sorted({whys[i] for i in ids}))
            for run, ids in sorted(decides.items())}
-    for run in list(out):  # sorted: a twin of two deciding runs is named after the first
+    deciding = sorted(out)
+    kinds = kinds or {}
+    # A twin and a run of a withheld kind say the same: which kind of run it is and which deciding run of the kind it
+    # is withheld with. "measured the same as" would tell that two withheld runs measured alike (the colour-swapped
+    # control and the baseline: C7's and B4's answer), issue 44 hostile pass 8.
+    withheld_with: dict[str, str] = {}
+    for run in deciding:  # sorted: a twin of two deciding runs is named after the first
         for twin in sorted((twins or {}).get(run, ())):
-            out.setdefault(twin, f"measured the same as {run}, which {out[run]}")
-    for run, kind in sorted((kinds or {}).items()):
-        like = next((other for other in sorted(out) if (kinds or {}).get(other) == kind and other != run), None)
-        if like is not None and run not in out:
-            out[run] = f"is a {kind} run, as {like} is, which {out[like]}"
+            withheld_with.setdefault(twin, run)
+    for run, kind in sorted(kinds.items()):
+        like = next((other for other in deciding if kinds.get(other) == kind and other != run), None)
+        if like is not None:
+            withheld_with.setdefault(run, like)
+    for run, source in sorted(withheld_with.items()):
+        if run in out:
+            continue
+        kind = kinds.get(run)
+        like = next((other for other in deciding if kind is not None and kinds.get(other) == kind), source)
+        out[run] = (f"is a {kind} run, as {like} is, which {out[like]}" if kind is not None
+                    else f"is withheld with {like}, which {out[like]}")
     return out
 
 

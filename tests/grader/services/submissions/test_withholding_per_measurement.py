@@ -133,10 +133,13 @@ def test_a_run_that_measured_the_same_as_a_deciding_one_is_withheld_with_it_what
     stops = {s for m in metrics.values() for s in _stops(m)}
     assert stops, metrics
 
-    # Evidence downloads (API and page) answer as for the deciding run: the colour-swapped control names the run it
-    # measured the same as; friction-table-0.30 is itself what B3 asks of a table exercise (its rule's declared reads).
-    why = {"friction-baseline-colors-swapped": "measured the same as friction-baseline, which decides B3",
+    # Evidence downloads (API and page) answer as for the deciding run: the colour-swapped control says its kind and
+    # the deciding run it is withheld with, not that it measured the same (C7's answer: hostile pass 8);
+    # friction-table-0.30 is itself what B3 asks of a table exercise (its rule's declared reads).
+    why = {"friction-baseline-colors-swapped": "is a friction run, as friction-baseline is, which decides B3",
            "friction-table-0.30": "it decides B3"}
+    reasons = grade_of(api, sid, "alice").json()["withheld_measurements"]
+    assert reasons and not [r for r in reasons.values() if "measured the same" in r], reasons
     for twin, run in twins.items():
         for name in ("arrays.npz", "metrics.json", "provenance.json"):
             refused = _get(api, f"/v1/submissions/{sid}/case-runs/{twin}/files/{name}")
@@ -250,7 +253,8 @@ def test_a_config_of_a_withheld_runs_physics_sampled_otherwise_is_withheld_with_
     sid = free_graded(api, measured, complete=True, sheet=sheet)
     refused = _get(api, f"/v1/submissions/{sid}/case-runs/sheet.extension/files/metrics.json")
     assert refused.status_code == 409, refused.text
-    assert "measured the same as N2, which decides A2" in refused.json()["detail"], refused.text
+    detail = refused.json()["detail"]
+    assert "is a contact run, as N" in detail and "which decides A2" in detail, detail
     assert "sheet.extension" in grade_of(api, sid, "alice").json()["withheld_measurements"]
     assert _get(api, f"/v1/submissions/{sid}/case-runs/sheet.extension/files/metrics.json", "prof").status_code == 200
 
