@@ -23,7 +23,7 @@ from grader.services.errors import DomainError
 from grader.core.settings import settings
 
 app = FastAPI(
-    title="L03 simulation autograder",
+    title="Genesis lab autograder",
     version="1",
     description="Submit a prediction sheet with case configs; workers measure the cases on real Genesis; "
     "the grade, every measured number and its provenance are stored and served. "

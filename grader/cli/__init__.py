@@ -10,7 +10,7 @@ from . import assignment, case, check, course, grade, lesson, lti, roster, rubri
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 def main() -> None:
-    """Autograder for the Genesis course (lesson L03)."""
+    """Autograder for the Genesis course: its lessons are installed packages (`grader lesson list`)."""
 
 
 for command in (assignment.assignment, case.case, check.check, course.course, grade.grade, lesson.lesson, lti.lti,
