@@ -34,11 +34,14 @@ COPY grader grader
 RUN pip install --no-deps -e .
 USER grader
 # Genesis compiles the lesson's kernels on its first cases (minutes): done once here, for the scene structures a
-# worker's warm case process loads when it starts (worker.warm_process.WARM_UP_CASES), so that a new worker takes
-# its first case warm. The compose file's genesis-cache volume starts as a copy of this cache. The build host's cache
-# mount keeps the kernels between builds, so a rebuild after a source change only loads them.
+# worker's warm case process loads when it starts (every installed lesson's warm_up_cases:
+# worker.warm_process.warm_up_cases), so that a new worker takes its first case warm. The compose file's genesis-cache
+# volume starts as a copy of this cache. The build host's cache mount keeps the kernels between builds, so a rebuild
+# after a source change only loads them. A build that cannot list them fails (an empty list would build no kernels).
 RUN --mount=type=cache,id=l03-grader-genesis-kernels,target=/home/grader/.kernels,uid=10001,gid=10001 \
-    for case in $(python -c "from worker.warm_process import WARM_UP_CASES; print(*WARM_UP_CASES)"); do \
+    cases=$(python -c "from worker.warm_process import warm_up_cases; print(*(name for name, _ in warm_up_cases()))") \
+    && test -n "$cases" \
+    && for case in $cases; do \
         grader case show "$case" > /tmp/case.json \
         && XDG_CACHE_HOME=/home/grader/.kernels grader case run /tmp/case.json --out "/tmp/warm-$case" --mode isolated \
         || exit 1; \

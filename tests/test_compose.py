@@ -167,3 +167,21 @@ def test_the_images_run_as_a_user_and_install_locked_requirements_only():
         assert users and users[-1] not in ("root", "0"), name
         assert "--require-hashes" in dockerfile and "requirements/" in dockerfile, name
         assert "HEALTHCHECK" in dockerfile, name
+
+
+def test_the_cpu_image_lists_the_warm_up_cases_it_compiles_kernels_for():
+    """The worker image compiles the kernels of the cases its warm case process loads, listed by a Python line in its
+    Dockerfile; a line that fails (it named a constant since removed) would list none and build an image with no
+    kernels. The line runs here and names every installed lesson's warm-up cases."""
+    import re
+    import subprocess
+    import sys
+
+    from worker.warm_process import warm_up_cases
+
+    text = (ROOT / "docker" / "worker-cpu.Dockerfile").read_text()
+    line = re.search(r'cases=\$\(python -c "([^"]+)"\)', text)
+    assert line and "test -n \"$cases\"" in text, "the Dockerfile lists the cases and fails on an empty list"
+    listed = subprocess.run([sys.executable, "-c", line[1]], capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert listed.returncode == 0, listed.stderr
+    assert listed.stdout.split() == [name for name, _ in warm_up_cases()] and listed.stdout.split(), listed.stdout
