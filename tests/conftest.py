@@ -128,6 +128,17 @@ def isolated_contact(tmp_path_factory, worker_id) -> dict[str, CaseResult]:
                         mode="isolated", jobs=2)
 
 
+@pytest.fixture(scope="session")
+def rendered_n1(tmp_path_factory, worker_id) -> CaseResult:
+    """N1 on cpu with rendering, in a fresh process: once per test run, shared as `measured` is. tests/worker/
+    test_case_process (real frames on a headless machine) and tests/worker/test_figures (the camera figure) each ran
+    this very run for themselves (20-45 s each on the loaded 2-core machine)."""
+    from rubric import get_case, with_backend
+
+    spec = with_backend(get_case("N1"), backend="cpu", render=True)
+    return _shared_runs(tmp_path_factory, worker_id, "rendered", [spec], mode="isolated")["N1"]
+
+
 def _shared_runs(tmp_path_factory, worker_id, name: str, specs: list, *, mode: str, jobs: int = 1):
     """Run `specs` once per test run (see `measured`); every run must succeed on real Genesis."""
     from filelock import FileLock

@@ -101,8 +101,8 @@ def test_stale_evidence_in_the_output_folder_never_passes_for_a_new_result(tmp_p
     assert result.status == "failed" and not (tmp_path / "arrays.npz").exists()
 
 
-def test_rendering_returns_real_frames_on_a_headless_machine(tmp_path):
-    result = run_case(with_backend(get_case("N1"), backend="cpu", render=True), tmp_path)
+def test_rendering_returns_real_frames_on_a_headless_machine(rendered_n1):
+    result = rendered_n1  # N1 with render=True, isolated: the session's run (tests/conftest.py), test_figures' too
     assert result.ok, result.error
     assert result.provenance.rendering.status == "OK" and result.provenance.rendering.frames == 2
     for field in ("frame_initial", "frame_final"):

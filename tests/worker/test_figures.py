@@ -12,7 +12,7 @@ import pytest
 from PIL import Image
 
 from lessons.l03 import figures
-from rubric import CONTACT_CASES, CaseResult, case_metrics, get_case, with_backend
+from rubric import CONTACT_CASES, CaseResult, case_metrics, get_case
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 REPO = Path(__file__).resolve().parents[2]
@@ -132,11 +132,8 @@ def test_file_names_cannot_escape_the_output_folder(measured, tmp_path):
 
 
 @pytest.mark.slow
-def test_camera_path_when_the_run_rendered(tmp_path):
-    from worker import run_cases
-
-    spec = with_backend(get_case("N1"), backend="cpu", render=True)
-    result = run_cases([spec], tmp_path / "run", mode="isolated")["N1"]
+def test_camera_path_when_the_run_rendered(rendered_n1, tmp_path):
+    result = rendered_n1  # N1 with render=True, isolated: the session's run (tests/conftest.py), test_case_process's too
     assert result.ok, result.error
     assert figures.has_frames(result)
     path = figures.frames_figure(result, tmp_path / "fig")
