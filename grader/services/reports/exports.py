@@ -20,7 +20,7 @@ from grader.core.variants import measuring_submissions
 from grader.core.models import Assignment, CaseRun, Course, Grade, Submission
 from grader.services.setup import assignments
 from grader.services.errors import Conflict, NotFound
-from grader.services.submissions.visibility import own_config_runs, readers, visibility_of
+from grader.services.submissions.visibility import own_config_runs, readers, runs_answering, visibility_of
 from rubric.exports import csv_text, grades_csv, gradescope_results
 from rubric.scoring import GradeReport
 
@@ -119,11 +119,28 @@ def gradescope(*, session: Session, submission: Submission) -> dict:
     # an item whose verdict would tell a withheld item's answer takes that item's visibility (visibility.readers)
     runs = submission.case_runs
     names, kinds = [r.name for r in runs], {r.name: r.kind for r in runs}
+    rank = _GRADESCOPE_ORDER.index
+    held_runs: dict[str, set[str]] = {}  # per visibility, the runs withheld while the items held at it are
     for seen in reversed(_GRADESCOPE_ORDER[1:]):  # the most withholding first
-        held = [i for i, v in shown.items() if _GRADESCOPE_ORDER.index(v) >= _GRADESCOPE_ORDER.index(seen)]
+        held = [i for i, v in shown.items() if rank(v) >= rank(seen)]
         for item in readers(submission.lesson, held, names, kinds, own_config_runs(submission)):
-            if _GRADESCOPE_ORDER.index(shown.get(item, "visible")) < _GRADESCOPE_ORDER.index(seen):
+            if rank(shown.get(item, "visible")) < rank(seen):
                 shown[item] = seen
+        # the kind rule (visibility.withheld_runs): every run of a kind a held item's runs are of
+        held_kinds = {kinds[r] for reads in runs_answering(submission.lesson, held, names).values() for r in reads}
+        held_runs[seen] = {r for r in names if kinds[r] in held_kinds}
+    # A test shown before such runs are (a conceptual item's: its verdict is the answer key's, its evidence their
+    # values) keeps its verdict, not their numbers, as the report page masks it (issue 44, hostile pass 9: A5's
+    # visible output carried N1's and N2's proxies with A2 on release).
+    masked = []
+    for item in report.items:
+        touched = next((runs_ for v, runs_ in held_runs.items() if rank(shown.get(item.id, "visible")) < rank(v)
+                        and set(item.backends) & runs_), None)
+        masked.append(item if touched is None else item.model_copy(update={
+            "measured": "", "evidence": {}, "feedback": (
+                f"Verdict: {item.verdict.replace('_', ' ')}. Evidence withheld: it reads the measurements of "
+                f"{', '.join(sorted(set(item.backends) & touched))}, which decide items not shown yet.")}))
+    report = report.model_copy(update={"items": masked})
     results = gradescope_results(report, grade.execution_s, shown)
     overridden = {i["id"]: i for i in _overridden(grade)}
     for test in results["tests"]:

@@ -516,3 +516,21 @@ def test_a_config_item_is_always_shown_since_the_forms_check_tells_its_answer_be
     assert items["H5"] == staff["H5"] and staff["H5"]["verdict"] != "pending", staff["H5"]
     held = [i for i in items if i != "H5" and not i.startswith("C")]  # the exercises: every item but the checkpoints
     assert all(items[i]["verdict"] == "pending" for i in held), [(i, items[i]["verdict"]) for i in held]
+
+
+def test_a_visible_gradescope_test_carries_no_value_of_a_withheld_run(api, measured):
+    """Issue 44, hostile pass 9 (high): with A2 on release, A5 (conceptual: its verdict is the answer key's) stayed
+    visible in the Gradescope file with "Evidence: N1 proxy ... N2 proxy ...": the N1 -> N2 half of A2's answer. A test
+    shown before the runs it reads keeps its verdict, not their numbers."""
+    create(api, part="exercises", item_visibility={"A2": "on_release"})
+    sid = free_graded(api, measured, complete=True)
+    staff = {i["id"]: i for i in grade_of(api, sid, "prof").json()["items"]}
+    told = [p for p in staff["A2"]["measured"].split("; ") if p] + [
+        p for p in staff["A5"]["measured"].split("; ") if p]
+    assert told, staff["A2"]
+    doc = _get(api, f"/v1/submissions/{sid}/gradescope.json", "prof").json()
+    tests = {t["name"].split(":", 1)[0]: t for t in doc["tests"]}
+    visible = [t for t in doc["tests"] if t["visibility"] == "visible"]
+    assert tests["A5"]["visibility"] == "visible" and "Evidence withheld" in tests["A5"]["output"], tests["A5"]
+    assert tests["A5"]["score"] == staff["A5"]["score"]
+    assert not [(t["name"], p) for t in visible for p in told if p in t["output"]]
