@@ -107,11 +107,13 @@ def gradescope(*, session: Session, submission: Submission) -> dict:
     if grade is None:
         raise Conflict(f"submission {submission.id} is {submission.status}, not graded")
     report = _report(grade)
-    ids = {i.id for i in report.items}
+    # every item of the lesson an assignment of the course holds, in any part, not only this submission's: an
+    # exercises assignment withholding H1 withholds the friction runs a checkpoint submission's C5-C7 read (issue 44,
+    # hostile pass 10), as on the site (visibility.lesson_withheld)
     shown: dict[str, str] = {}
     for assignment in session.scalars(select(Assignment).where(Assignment.course_id == submission.course_id,
                                                                Assignment.lesson == submission.lesson)):
-        for item in ids & set(assignments.item_ids(assignment.lesson, assignment.part)):
+        for item in assignments.item_ids(assignment.lesson, assignment.part):
             seen = assignments.GRADESCOPE_VISIBILITY[visibility_of(assignment, item)]
             if _GRADESCOPE_ORDER.index(seen) > _GRADESCOPE_ORDER.index(shown.get(item, "visible")):
                 shown[item] = seen

@@ -115,6 +115,8 @@ def list_events(submission: SubmissionDep, session: SessionDep, user: CurrentUse
     events = session.scalars(select(Event).where(Event.submission_id == submission.id).order_by(Event.id)).all()
     # a withheld run's events keep their states, in order, not their times (running -> done is its wall time, and a
     # reused run has no running) nor details; its "running" is left out, so a reuse looks like a run
+    # and they come last, together, so that their place among timed events bounds no time either (pass 10)
+    events = sorted(events, key=lambda e: e.case_run_id in ids)  # stable: each run's own order kept
     return [EventPublic.model_validate(e).model_copy(update={"detail": "withheld" if e.detail else None, "at": None})
             if e.case_run_id in ids else EventPublic.model_validate(e) for e in events
             if not (e.case_run_id in ids and e.state == CaseRunState.RUNNING)]

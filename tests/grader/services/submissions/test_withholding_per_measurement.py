@@ -327,6 +327,7 @@ def test_a_students_own_config_of_a_withheld_runs_kind_is_withheld_whatever_it_m
     # nor their times, nor a running state a reused run would lack (pass 6), nor the tries (0: reused)
     mine = [e for e in events if ids.get(e["case_run_id"]) in withheld]
     assert mine and all(e["at"] is None and e["state"] != "running" for e in mine), mine
+    assert events[-len(mine):] == mine, events  # last, together: no timed event brackets them
     assert all(listed[r]["tries"] is None for r in withheld) and listed["friction-baseline"]["tries"] is not None
     staff_events = _get(api, f"/v1/submissions/{sid}/events", "prof").json()
     assert any(e["detail"] not in (None, "withheld") for e in staff_events if ids.get(e["case_run_id"]) in withheld)
@@ -534,3 +535,24 @@ def test_a_visible_gradescope_test_carries_no_value_of_a_withheld_run(api, measu
     assert tests["A5"]["visibility"] == "visible" and "Evidence withheld" in tests["A5"]["output"], tests["A5"]
     assert tests["A5"]["score"] == staff["A5"]["score"]
     assert not [(t["name"], p) for t in visible for p in told if p in t["output"]]
+
+
+def test_the_gradescope_file_of_a_checkpoint_submission_withholds_what_an_exercises_assignment_does(
+        api, lesson_measured):
+    """Issue 44, hostile pass 10 (high): the Gradescope file looked only at the submission's own part. With H1 (the
+    pair values) on release in the exercises, a checkpoint submission's file showed C6 visible with every lane's pair
+    value before and after, C7's expected answer (B4's) and a total counting C5-C7; the site withheld them. The file
+    now reads every item of the lesson an assignment holds, in any part, as the site does."""
+    create(api, title="Exercises", part="exercises", item_visibility={"H1": "on_release"})
+    checkpoints = create(api).json()["id"]  # immediate
+    submitted = submit(api, checkpoints)
+    assert submitted.status_code in (200, 201, 202), submitted.text
+    sid = submitted.json()["id"]
+    mine = {i["id"]: i for i in grade_of(api, sid, "alice").json()["items"]}
+    assert {i for i, item in mine.items() if item["verdict"] == "pending"} >= {"C5", "C6", "C7"}, mine
+    doc = _get(api, f"/v1/submissions/{sid}/gradescope.json", "prof").json()
+    tests = {t["name"].split(":", 1)[0]: t for t in doc["tests"]}
+    assert all(tests[i]["visibility"] == "after_published" for i in ("C5", "C6", "C7")), tests
+    assert tests["C1"]["visibility"] != "after_published"  # reads N4: no friction run (the A items' due date holds it)
+    assert "Evidence withheld" in tests["C8"]["output"], tests["C8"]  # conceptual: its friction stops wait
+    assert doc["visibility"] == "after_published" and " / " not in doc["output"].splitlines()[0], doc["output"]
