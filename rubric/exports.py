@@ -83,8 +83,10 @@ def gradescope_results(report: GradeReport, execution_time: float,
     # The results' own output and score tell every item: while a test is withheld they take the most withholding of
     # the tests' visibilities, and the output leaves out the total, and the one-factor findings while a config item
     # is withheld (they are its answer), so that what is visible tells no withheld test.
-    strictest = max((visibility.get(i.id, "visible") for i in report.items), key=GRADESCOPE_VISIBILITIES.index,
-                    default="visible")
+    # Gradescope's two gates are independent (an assignment can be published before its due date): tests behind
+    # both make the results hidden
+    gated = {visibility.get(i.id, "visible") for i in report.items} - {"visible"}
+    strictest = "visible" if not gated else gated.pop() if len(gated) == 1 else "hidden"
     header = (f"{report.lesson} graded under rubric version {report.rubric_version} "
               f"(sha256 {report.rubric_hash[:12]}){on}"
               + (f": {_number(report.total)} / {_number(report.max_total)}" if strictest == "visible" else ""))

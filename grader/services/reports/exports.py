@@ -17,10 +17,11 @@ from sqlalchemy.orm import Session
 from grader.core.lifecycle import evidence_bytes, evidence_of
 from grader.core.grades import current_grade
 from grader.core.variants import measuring_submissions
-from grader.core.models import Assignment, CaseRun, Course, Grade, Submission
+from grader.core.models import Assignment, CaseRun, Course, Grade, Submission, utcnow
 from grader.services.setup import assignments
 from grader.services.errors import Conflict, NotFound
-from grader.services.submissions.visibility import own_config_runs, readers, runs_answering, visibility_of
+from grader.services.submissions.visibility import (own_config_runs, readers, runs_answering, visibility_of,
+                                                    withheld_by)
 from rubric.exports import csv_text, grades_csv, gradescope_results
 from rubric.scoring import GradeReport
 
@@ -91,59 +92,56 @@ def counted_grades_csv(*, session: Session, assignment: Assignment) -> tuple[str
     return f"{assignment.course.name}-assignment-{assignment.id}-grades.csv", csv_text(rows)
 
 
-# Gradescope's visibilities, least withholding first: an item takes the most withholding of the lesson's assignments.
-_GRADESCOPE_ORDER = ("visible", "after_due_date", "after_published")
-
-
 def gradescope(*, session: Session, submission: Submission) -> dict:
-    """Gradescope results.json of one graded submission; each item's visibility is the most withholding that an
-    assignment of the course for its lesson gives that item (immediate: visible, after_due: after_due_date,
-    on_release: after_published), its own assignment or another, as the service withholds it from the student
-    (grader.services.submissions.visibility), and an item whose verdict would tell such an item's answer takes its
-    visibility (`readers`); an item no assignment holds is visible. The results' own output and score follow
-    (rubric.exports.gradescope_results). Conflict while not graded."""
+    """Gradescope results.json of one graded submission, for the Gradescope assignment of the submission's own
+    assignment: Gradescope's gates (`after_due_date`, `after_published`) are that assignment's own, so each test is
+    gated as the site gates the item (issue 44, hostile pass 11):
 
+    - an item its own assignment withholds takes that gate (after_due: after_due_date, on_release: after_published);
+      so does an item whose verdict would tell such an item's answer (`readers`);
+    - an item another assignment of the lesson withholds from the student now, or a reader of one, or an item held
+      by both gates at once, is `hidden`: no gate of this Gradescope assignment is that assignment's due date or
+      release (export again once it is shown);
+    - a test whose evidence reads runs held otherwise than the test itself (a conceptual item's, whose verdict is the
+      answer key's) keeps its verdict, not their numbers, as the report page masks it.
+
+    A free submission has no gate of its own: what is withheld from the student now is `hidden`. The results' own
+    output and score follow (rubric.exports.gradescope_results). Conflict while not graded."""
     grade = current_grade(session, submission.id)
     if grade is None:
         raise Conflict(f"submission {submission.id} is {submission.status}, not graded")
     report = _report(grade)
-    # every item of the lesson an assignment of the course holds, in any part, not only this submission's: an
-    # exercises assignment withholding H1 withholds the friction runs a checkpoint submission's C5-C7 read (issue 44,
-    # hostile pass 10), as on the site (visibility.lesson_withheld)
-    shown: dict[str, str] = {}
-    for assignment in session.scalars(select(Assignment).where(Assignment.course_id == submission.course_id,
-                                                               Assignment.lesson == submission.lesson)):
-        for item in assignments.item_ids(assignment.lesson, assignment.part):
-            seen = assignments.GRADESCOPE_VISIBILITY[visibility_of(assignment, item)]
-            if _GRADESCOPE_ORDER.index(seen) > _GRADESCOPE_ORDER.index(shown.get(item, "visible")):
-                shown[item] = seen
-            shown.setdefault(item, seen)
-    # an item whose verdict would tell a withheld item's answer takes that item's visibility (visibility.readers)
     runs = submission.case_runs
-    names, kinds = [r.name for r in runs], {r.name: r.kind for r in runs}
-    rank = _GRADESCOPE_ORDER.index
-    held_runs: dict[str, set[str]] = {}  # per visibility, the runs withheld while the items held at it are
-    for seen in reversed(_GRADESCOPE_ORDER[1:]):  # the most withholding first
-        held = [i for i, v in shown.items() if rank(v) >= rank(seen)]
-        for item in readers(submission.lesson, held, names, kinds, own_config_runs(submission)):
-            if rank(shown.get(item, "visible")) < rank(seen):
-                shown[item] = seen
-        # the kind rule (visibility.withheld_runs): every run of a kind a held item's runs are of
-        held_kinds = {kinds[r] for reads in runs_answering(submission.lesson, held, names).values() for r in reads}
-        held_runs[seen] = {r for r in names if kinds[r] in held_kinds}
-    # A test shown before such runs are (a conceptual item's: its verdict is the answer key's, its evidence their
-    # values) keeps its verdict, not their numbers, as the report page masks it (issue 44, hostile pass 9: A5's
-    # visible output carried N1's and N2's proxies with A2 on release).
+    names, kinds, configs = [r.name for r in runs], {r.name: r.kind for r in runs}, own_config_runs(submission)
+    own, now = submission.assignment, utcnow()
+    held: dict[str, set[str]] = {"after_due_date": set(), "after_published": set(), "hidden": set()}
+    if own is not None:
+        for item in assignments.item_ids(own.lesson, own.part):
+            gate = assignments.GRADESCOPE_VISIBILITY[visibility_of(own, item)]
+            if gate != "visible":
+                held[gate].add(item)
+    for other in session.scalars(select(Assignment).where(
+            Assignment.course_id == submission.course_id, Assignment.lesson == submission.lesson,
+            Assignment.id != (own.id if own is not None else -1))):
+        held["hidden"] |= set(withheld_by(session=session, assignment=other, student=submission.student, now=now))
+    gates: dict[str, set[str]] = {}
+    held_runs: dict[str, set[str]] = {}  # per gate, the runs withheld while the items held at it are (the kind rule)
+    for gate, items in held.items():
+        for item in [*items, *readers(submission.lesson, items, names, kinds, configs)]:
+            gates.setdefault(item, set()).add(gate)
+        held_kinds = {kinds[r] for reads in runs_answering(submission.lesson, items, names).values() for r in reads}
+        held_runs[gate] = {r for r in names if kinds[r] in held_kinds}
+    shown = {i: next(iter(g)) if len(g) == 1 else "hidden" for i, g in gates.items()}
     masked = []
     for item in report.items:
-        touched = next((runs_ for v, runs_ in held_runs.items() if rank(shown.get(item.id, "visible")) < rank(v)
-                        and set(item.backends) & runs_), None)
-        masked.append(item if touched is None else item.model_copy(update={
+        seen = shown.get(item.id, "visible")
+        touched = set().union(*(runs_ for gate, runs_ in held_runs.items() if gate != seen)) & set(item.backends)
+        masked.append(item if seen == "hidden" or not touched else item.model_copy(update={
             "measured": "", "evidence": {}, "feedback": (
                 f"Verdict: {item.verdict.replace('_', ' ')}. Evidence withheld: it reads the measurements of "
-                f"{', '.join(sorted(set(item.backends) & touched))}, which decide items not shown yet.")}))
+                f"{', '.join(sorted(touched))}, which decide items not shown yet.")}))
     report = report.model_copy(update={"items": masked})
-    results = gradescope_results(report, grade.execution_s, shown)
+    results = gradescope_results(report, grade.execution_s, {i.id: shown.get(i.id, "visible") for i in report.items})
     overridden = {i["id"]: i for i in _overridden(grade)}
     for test in results["tests"]:
         item = overridden.get(test["name"].split(":", 1)[0])

@@ -170,6 +170,12 @@ def with_readers(lesson_name: str, hidden: Mapping[str, str], runs: Sequence[str
     return out
 
 
+def withheld_by(*, session: Session, assignment: Assignment, student: User, now: datetime) -> dict[str, str]:
+    """{item id: why} of the items of `assignment` it withholds from `student` at `now` (its due date as it applies to
+    them, its release)."""
+    return _withheld_by(session, assignment, student, now)
+
+
 def _withheld_by(session: Session, assignment: Assignment, student: User, now: datetime) -> dict[str, str]:
     """{item id: why} of the items of `assignment` it withholds from `student` at `now`."""
     why: dict[str, str | None] = {Visibility.IMMEDIATE: None}

@@ -74,15 +74,17 @@ def test_the_gradescope_export_carries_each_items_visibility(api):
                      "C5": "after_due_date", "C6": "after_due_date", "C7": "after_due_date", "C8": "after_due_date"}
 
 
-def test_the_gradescope_export_takes_the_most_withholding_assignment_of_the_lesson(api):
+def test_the_gradescope_export_hides_what_another_assignment_of_the_lesson_withholds(api):
     """Issue 44 (hostile pass 2, F3): a practice attempt's export marked C1-C8 visible while an exam of the same
-    checkpoints withholds them until released; Gradescope would have shown them."""
+    checkpoints withholds them until released; Gradescope would have shown them. They were then given the exam's
+    gates, but those are the practice's own Gradescope due date and publish (pass 11): they are hidden."""
     create(api, title="Exam", visibility="on_release", item_visibility={"C2": "after_due"})
     practice = create(api, title="Practice").json()["id"]
     sid = submit(api, practice).json()["id"]
     results = api.client.get(f"/v1/submissions/{sid}/gradescope.json", headers=api.as_("prof")).json()
     shown = {t["name"].split(":")[0]: t["visibility"] for t in results["tests"]}
-    assert shown == {f"C{n}": "after_due_date" if n == 2 else "after_published" for n in range(1, 9)}
+    assert shown == {f"C{n}": "hidden" for n in range(1, 9)}
+    assert results["visibility"] == "hidden"
 
 
 def test_gradescope_visibility_outside_gradescopes_words_is_refused():

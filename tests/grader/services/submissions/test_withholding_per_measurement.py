@@ -482,17 +482,18 @@ def test_an_item_whose_verdict_would_tell_a_withheld_one_waits_with_it_on_every_
 def test_the_gradescope_export_gives_a_reader_of_a_withheld_items_runs_its_visibility(api, measured):
     """Issue 44, hostile pass 6 (high): with B3 on release, the export for Gradescope gave H3 "visible" with B3's
     evidence ("high: 0.2240 -> 0.2241 m") in its output, and a visible header with the total counting B3. Each
-    test whose verdict reads a withheld item's runs takes its visibility; while any test waits, the results' own
-    output leaves the total out and the results take the most withholding visibility."""
+    test whose verdict reads a withheld item's runs is gated with it: here a free submission, whose Gradescope
+    assignment has no gate of its own, so what is withheld from the student now is hidden (pass 11: another
+    assignment's release is no gate of this one); while any test waits, the results' own output leaves the total out
+    and the results take the tests' gate."""
     create(api, part="exercises", item_visibility={"B3": "on_release"})
     sid = free_graded(api, measured, complete=True)
     results = _get(api, f"/v1/submissions/{sid}/gradescope.json", "prof")
     assert results.status_code == 200, results.text
     doc = results.json()
     tests = {t["name"].split(":", 1)[0]: t for t in doc["tests"]}
-    assert all(tests[i]["visibility"] == "after_published" for i in ("B3", "H1", "H2", "H3", "H4")), tests
-    assert tests["A1"]["visibility"] != "after_published"  # the assignment's own, read no withheld run
-    assert doc["visibility"] == "after_published" and " / " not in doc["output"].splitlines()[0], doc["output"]
+    assert all(tests[i]["visibility"] == "hidden" for i in ("B3", "H1", "H2", "H3", "H4")), tests
+    assert doc["visibility"] == "hidden" and " / " not in doc["output"].splitlines()[0], doc["output"]
     b3 = {i["id"]: i for i in grade_of(api, sid, "prof").json()["items"]}["B3"]
     told = [p for p in b3["measured"].split("; ") if p]
     assert told and not [p for t in doc["tests"] if t["visibility"] == "visible" for p in told if p in t["output"]]
@@ -552,7 +553,26 @@ def test_the_gradescope_file_of_a_checkpoint_submission_withholds_what_an_exerci
     assert {i for i, item in mine.items() if item["verdict"] == "pending"} >= {"C5", "C6", "C7"}, mine
     doc = _get(api, f"/v1/submissions/{sid}/gradescope.json", "prof").json()
     tests = {t["name"].split(":", 1)[0]: t for t in doc["tests"]}
-    assert all(tests[i]["visibility"] == "after_published" for i in ("C5", "C6", "C7")), tests
-    assert tests["C1"]["visibility"] != "after_published"  # reads N4: no friction run (the A items' due date holds it)
+    # another assignment's withholding is no gate of the checkpoints' Gradescope assignment: hidden (pass 11)
+    assert all(tests[i]["visibility"] == "hidden" for i in ("C5", "C6", "C7")), tests
+    assert tests["C2"]["visibility"] == "visible"  # conceptual, reads no run
     assert "Evidence withheld" in tests["C8"]["output"], tests["C8"]  # conceptual: its friction stops wait
-    assert doc["visibility"] == "after_published" and " / " not in doc["output"].splitlines()[0], doc["output"]
+    assert doc["visibility"] == "hidden" and " / " not in doc["output"].splitlines()[0], doc["output"]
+
+
+def test_the_gradescope_file_gates_each_test_by_its_own_assignment_and_hides_what_two_gates_hold(api, lesson_measured):
+    """Issue 44, hostile pass 11 (high): Gradescope's after_due_date and after_published are the Gradescope
+    assignment's own due date and publish, independent of each other. With the checkpoints on release and the
+    exercises due in a week, the file gave C1-C8 "after_published": on publish, before the exercises were due, C7's
+    expected answer (B4's) and C5's pair value were shown. A checkpoint held by its own assignment alone takes that
+    assignment's gate; one the exercises withhold too (a reader of their items) is hidden; the results, behind two
+    gates, are hidden."""
+    create(api, title="Exercises", part="exercises", visibility="after_due")  # due in the future: withheld now
+    checkpoints = create(api, visibility="on_release").json()["id"]
+    sid = submit(api, checkpoints).json()["id"]
+    doc = _get(api, f"/v1/submissions/{sid}/gradescope.json", "prof").json()
+    tests = {t["name"].split(":", 1)[0]: t for t in doc["tests"]}
+    assert all(tests[i]["visibility"] == "hidden" for i in ("C1", "C5", "C6", "C7")), tests  # readers of B, H, A items
+    assert tests["C2"]["visibility"] == "after_published"  # its own gate alone
+    assert "Evidence withheld" in tests["C8"]["output"] and tests["C8"]["visibility"] == "after_published"
+    assert doc["visibility"] == "hidden"
