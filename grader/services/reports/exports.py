@@ -105,7 +105,8 @@ def gradescope(*, session: Session, submission: Submission) -> dict:
     - a test whose evidence reads runs held otherwise than the test itself (a conceptual item's, whose verdict is the
       answer key's) keeps its verdict, not their numbers, as the report page masks it.
 
-    A free submission has no gate of its own: what is withheld from the student now is `hidden`. The results' own
+    A student's extension is no gate either: while it runs, what waits for its due date is `hidden`. A free
+    submission has no gate of its own: what is withheld from the student now is `hidden`. The results' own
     output and score follow (rubric.exports.gradescope_results). Conflict while not graded."""
     grade = current_grade(session, submission.id)
     if grade is None:
@@ -116,8 +117,14 @@ def gradescope(*, session: Session, submission: Submission) -> dict:
     own, now = submission.assignment, utcnow()
     held: dict[str, set[str]] = {"after_due_date": set(), "after_published": set(), "hidden": set()}
     if own is not None:
+        # Gradescope's after_due_date opens at its assignment's due date, not at this student's extension: while the
+        # extension runs, what waits for it is hidden (pass 12)
+        due = assignments.dates_for(session=session, assignment=own, student=submission.student)
+        extended = due.extension is not None and due.due_at != own.due_at and now < due.due_at
         for item in assignments.item_ids(own.lesson, own.part):
             gate = assignments.GRADESCOPE_VISIBILITY[visibility_of(own, item)]
+            if gate == "after_due_date" and extended:
+                gate = "hidden"
             if gate != "visible":
                 held[gate].add(item)
     for other in session.scalars(select(Assignment).where(

@@ -154,3 +154,19 @@ def test_lateness_reads_in_days_hours_and_minutes_with_the_days_charged():
     assert [late_text(s) for s in (0, 59, 7200, 27914, 86400, 93780)] == [
         "on time", "59 s late (1 day charged)", "2 h late (1 day charged)", "7 h 45 min late (1 day charged)",
         "1 d late (1 day charged)", "1 d 2 h 3 min late (2 days charged)"]
+
+
+def test_the_gradescope_export_hides_what_waits_for_a_students_extension(api):
+    """Issue 44, hostile pass 12 (medium): Gradescope's after_due_date opens at its assignment's due date, not at a
+    student's extension; alice, extended past the close, would have read her after_due items there while the site
+    still withheld them. While the extension runs they are hidden; bob's file keeps the gate."""
+    aid = create(api, visibility="after_due", open_at=at(-3), due_at=at(-2), hard_close_at=at(-1)).json()["id"]
+    granted = api.client.post(f"/v1/assignments/{aid}/extensions", headers=api.as_("prof"),
+                              json={"student": "alice", "due_at": at(1), "hard_close_at": at(2)})
+    assert granted.status_code == 201, granted.text
+    sid = submit(api, aid).json()["id"]
+    mine = api.client.get(f"/v1/submissions/{sid}/grade", headers=api.as_("alice"))
+    assert mine.status_code == 409 and "shown after the due date" in mine.json()["detail"]  # until her own due date
+    results = api.client.get(f"/v1/submissions/{sid}/gradescope.json", headers=api.as_("prof")).json()
+    shown = {t["name"].split(":")[0]: t["visibility"] for t in results["tests"]}
+    assert set(shown.values()) == {"hidden"}, shown
