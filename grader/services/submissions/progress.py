@@ -10,7 +10,6 @@ import time
 from dataclasses import dataclass, field
 from datetime import datetime
 
-import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
@@ -39,11 +38,7 @@ class Estimate:
     stepping (the median of their wall time less their stepping time: building or resetting the scene, writing the
     arrays), plus its internal updates (`updates`) times their stepping time per internal update (median; low and high
     from the fastest and slowest per update). A config of 37,500 updates is not a 150-update case (issue 49): measured
-    here, N5's 600 updates were estimated within 10% from N1-N4's 75-300. Where the measured runs differ in substeps
-    per step, the stepping time is fitted as a cost per outer step plus a cost per internal update (`steps` set): a
-    step's own work (collision, sampling) is most of it, so a config of many substeps costs less per update than N1's
-    (a 6,000-update config at 4 substeps took 2.75 s where the per-update median said about 6 s). "kind": runs of any
-    case of its kind, where
+    here, N5's 600 updates were estimated within 10% from N1-N4's 75-300. "kind": runs of any case of its kind, where
     neither is known. Only runs that measured a case themselves count
     (not a reused measurement), in the execution mode the run will have; in a warm case process only those that
     reused a built scene, so a process's start, Genesis' import and a first scene build (the warm-up) are left out."""
@@ -54,7 +49,6 @@ class Estimate:
     runs: int
     basis: str
     updates: int | None = None  # basis "size": the run's own internal updates
-    steps: int | None = None  # basis "size" where the cost per outer step was fitted apart from the cost per update
 
 
 @dataclass(frozen=True)
@@ -223,51 +217,15 @@ def _row(run: CaseRun, place: tuple[int, int] | None, estimate: Estimate | None,
                        withheld=withheld)
 
 
-@dataclass(frozen=True)
-class Size:
-    """A run's size: its internal updates (outer steps x substeps, as its lesson's case kind derives them), and what
-    it steps in all, settling included (the stepping time covers both): outer steps and internal updates."""
-
-    updates: int
-    stepped_steps: int
-    stepped_updates: int
-
-
-def internal_updates(lesson_name: str, kind: str, spec: dict | None) -> Size | None:
-    """A stored spec's size (`Size`); None where the lesson's kind says none or the spec does not validate (its run
-    is then estimated by its kind alone)."""
+def internal_updates(lesson_name: str, kind: str, spec: dict | None) -> int | None:
+    """A stored spec's internal updates (outer steps x substeps), as its lesson's case kind derives them; None where
+    the lesson's kind says none or the spec does not validate (its run is then estimated by its kind alone)."""
     try:
         model = lesson(lesson_name).case_kinds[kind].model_validate(spec or {})
     except Exception:  # noqa: BLE001 - an estimate is never worth a failed page
         return None
-    updates, steps = getattr(model, "internal_updates", None), getattr(model, "n_steps", None)
-    if not (isinstance(updates, int) and updates > 0):
-        return None
-    steps = steps if isinstance(steps, int) and steps > 0 else updates
-    settle = getattr(model, "settle_steps", 0) or 0
-    return Size(updates=updates, stepped_steps=steps + settle, stepped_updates=updates + settle * (updates // steps))
-
-
-@dataclass(frozen=True)
-class _SizeModel:
-    """What a run of a kind costs by its size: `overhead_s` besides stepping (median), and its stepping time as
-    `step_s` per outer step plus `update_s` per internal update; `low` and `high` the fastest and slowest measured
-    run's stepping time over the model's; `fitted`: the two costs fitted apart (else `step_s` is 0 and `update_s`
-    the median time per update)."""
-
-    overhead_s: float
-    step_s: float
-    update_s: float
-    low: float
-    high: float
-    runs: int
-    fitted: bool
-
-    def estimate(self, size: Size) -> Estimate:
-        stepping = self.step_s * size.stepped_steps + self.update_s * size.stepped_updates
-        return Estimate(median_s=self.overhead_s + stepping, low_s=self.overhead_s + stepping * self.low,
-                        high_s=self.overhead_s + stepping * self.high, runs=self.runs, basis="size",
-                        updates=size.updates, steps=size.stepped_steps if self.fitted else None)
+    updates = getattr(model, "internal_updates", None)
+    return updates if isinstance(updates, int) and updates > 0 else None
 
 
 class _Estimates:
@@ -277,9 +235,9 @@ class _Estimates:
         self.session, self._cache = session, {}
 
     def of(self, spec_key: str | None, kind: str, backend: str, mode: str | None,
-           updates: Size | None = None) -> Estimate | None:
-        """The estimate of a run: from earlier runs of the same case, else from its size (`updates`) at the measured
-        cost per step and per update of its kind, else from runs of cases of its kind."""
+           updates: int | None = None) -> Estimate | None:
+        """The estimate of a run: from earlier runs of the same case, else from its size (`updates`, its internal
+        updates) at the measured time per update of its kind, else from runs of cases of its kind."""
         mode = mode or settings.execution_mode  # a run that names no mode runs in the worker's
         if spec_key is not None:
             found = self._get("case", spec_key, backend, mode)
@@ -291,7 +249,11 @@ class _Estimates:
                 self._cache[key] = _size_model(self.session, kind, backend, mode)
             model = self._cache[key]
             if model is not None:
-                return model.estimate(updates)
+                overhead_s, per_update = model
+                return Estimate(median_s=overhead_s + per_update.median_s * updates,
+                                low_s=overhead_s + per_update.low_s * updates,
+                                high_s=overhead_s + per_update.high_s * updates, runs=per_update.runs, basis="size",
+                                updates=updates)
         return self._get("kind", kind, backend, mode)
 
     def _get(self, basis: str, value: str, backend: str, mode: str) -> Estimate | None:
@@ -309,43 +271,22 @@ def _measured(kind_or_key, backend: str, mode: str):
             CaseRun.provenance["execution_mode"].as_string() == mode)
 
 
-def _size_model(session: Session, kind: str, backend: str, mode: str) -> _SizeModel | None:
-    """What a run of `kind` costs by its size (`_SizeModel`), from the latest MEASURED_RUNS_KEPT runs of the kind on
-    `backend` in `mode` that recorded their discretization and stepping time; None without any. Any scene counts (a
-    fresh build is part of what a new config costs); the overhead is a median, so a process's first case (Genesis'
-    import and its first build, tens of seconds) is one outlier among them, not the estimate."""
-    def disc(name):
-        return CaseRun.provenance[("discretization", name)].as_integer()
-
+def _size_model(session: Session, kind: str, backend: str, mode: str) -> tuple[float, Estimate] | None:
+    """(what a run of `kind` takes besides stepping, its stepping time per internal update as an Estimate) from the
+    latest MEASURED_RUNS_KEPT runs of the kind on `backend` in `mode` that recorded both; None without any. Any scene
+    counts (a fresh build is part of what a new config costs); the overhead is a median, so a process's first case
+    (Genesis' import and its first build, tens of seconds) is one outlier among them, not the estimate."""
+    updates = CaseRun.provenance[("discretization", "internal_updates")].as_integer()
     stepping = CaseRun.provenance[("timings", "steps_s")].as_float()
-    rows = session.execute(select(CaseRun.wall_s, disc("n_steps"), disc("internal_updates"), disc("settle_steps"),
-                                  stepping)
-                           .where(*_measured(CaseRun.kind == kind, backend, mode), disc("internal_updates") > 0,
-                                  stepping.is_not(None))
+    rows = session.execute(select(CaseRun.wall_s, updates, stepping)
+                           .where(*_measured(CaseRun.kind == kind, backend, mode), updates > 0, stepping.is_not(None))
                            .order_by(CaseRun.finished_at.desc(), CaseRun.id.desc()).limit(MEASURED_RUNS_KEPT)).all()
     if not rows:
         return None
-    overhead = statistics.median(max(0.0, wall - steps) for wall, *_, steps in rows)
-    sizes = [(n or u) + (settle or 0) for _, n, u, settle, _ in rows]
-    updates = [u + (settle or 0) * (u // (n or u)) for _, n, u, settle, _ in rows]
-    times = [max(steps, 1e-9) for *_, steps in rows]
-    fit = _fit(sizes, updates, times)
-    step_s, update_s = fit if fit is not None else (0.0, statistics.median(t / u for t, u in zip(times, updates)))
-    ratios = [t / (step_s * n + update_s * u) for t, n, u in zip(times, sizes, updates)]
-    return _SizeModel(overhead_s=overhead, step_s=step_s, update_s=update_s, low=min(ratios), high=max(ratios),
-                      runs=len(rows), fitted=fit is not None)
-
-
-def _fit(steps: list[int], updates: list[int], times: list[float]) -> tuple[float, float] | None:
-    """(seconds per outer step, seconds per internal update) fitted to the measured stepping `times` by least squares
-    on their relative error; None where the runs cannot tell the two apart (one ratio of updates to steps) or the fit
-    gives a negative cost."""
-    if len({round(u / n, 6) for n, u in zip(steps, updates)}) < 2:
-        return None
-    weights = np.array(times)
-    design = np.column_stack([np.array(steps) / weights, np.array(updates) / weights])
-    (step_s, update_s), *_ = np.linalg.lstsq(design, np.ones(len(times)), rcond=None)
-    return (float(step_s), float(update_s)) if step_s >= 0 and update_s > 0 else None
+    overhead = statistics.median(max(0.0, wall - steps) for wall, _, steps in rows)
+    per_update = [steps / n for _, n, steps in rows]
+    return overhead, Estimate(median_s=statistics.median(per_update), low_s=min(per_update), high_s=max(per_update),
+                              runs=len(rows), basis="size")
 
 
 def _estimate(session: Session, basis: str, value: str, backend: str, mode: str) -> Estimate | None:
@@ -478,7 +419,7 @@ def _estimate_json(estimate: Estimate | None) -> dict | None:
     if estimate is None:
         return None
     return {"median_s": estimate.median_s, "low_s": estimate.low_s, "high_s": estimate.high_s,
-            "runs": estimate.runs, "basis": estimate.basis, "updates": estimate.updates, "steps": estimate.steps}
+            "runs": estimate.runs, "basis": estimate.basis, "updates": estimate.updates}
 
 
 def as_json(progress: Progress) -> dict:

@@ -293,7 +293,5 @@ def test_a_config_never_measured_is_estimated_from_its_size_within_a_factor_of_t
     assert estimate.low_s <= estimate.median_s <= estimate.high_s and estimate.runs >= 1
     page = api.client.get(f"/submissions/{mine}/progress", headers=api.as_("alice")).text
     row = page.split('id="run-sheet.extension"', 1)[1].split("</tr>", 1)[0]
-    # what it rests on: its size, at the costs fitted to the contact runs measured (N1-N4 differ in substeps per step)
-    assert "never measured: its 150 steps and 600 internal updates at the cost per step and per update fitted to" in row, row
-    assert estimate.steps == 150, estimate
+    assert "never measured: its 600 internal updates at the" in row and "time per update of" in row, row
     assert progress.as_json(p)["runs"][[r.name for r in p.runs].index("sheet.extension")]["estimate"]["updates"] == 600
