@@ -166,8 +166,11 @@ def submission_progress(*, session: Session, user: User, submission_id: int) -> 
         # very case (issue 44, hostile pass 5); its estimate comes from its size or its kind, as for a case never
         # measured
         withheld = grade_view(session=session, submission=submission, user=user, report=False).withheld_runs
-        rows = [_row(r, places.get(r.id), estimates.of(None if r.name in withheld else r.spec_key, r.kind, r.backend,
-                                                       r.mode, internal_updates(submission.lesson, r.kind, r.spec)),
+        # a withheld run is estimated from its kind alone: its own case's runs would say which case it measured, and
+        # its size is an answer (N4's 150 internal updates are C1's; issue 44, hostile pass 13)
+        rows = [_row(r, places.get(r.id), estimates.of(None, r.kind, r.backend, r.mode) if r.name in withheld else
+                     estimates.of(r.spec_key, r.kind, r.backend, r.mode,
+                                  internal_updates(submission.lesson, r.kind, r.spec)),
                      now, withheld=r.name in withheld)
                 for r in runs]
         running_ahead = _running_ahead(session, backends, {r.id for r in runs}, estimates, now)

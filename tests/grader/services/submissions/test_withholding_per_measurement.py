@@ -337,6 +337,12 @@ def test_a_students_own_config_of_a_withheld_runs_kind_is_withheld_whatever_it_m
     assert all(rows[r]["withheld"] and rows[r]["wall_s"] is None and rows[r]["error"] is None
                and rows[r]["reused"] is False and rows[r]["status"] == "done" for r in withheld), rows
     assert rows["friction-baseline"]["wall_s"] is not None and not rows["friction-baseline"]["withheld"]
+    # nor its size (N4's 150 internal updates are C1's answer: hostile pass 13): estimated by its kind alone
+    assert all(rows[r]["estimate"] is None or (rows[r]["estimate"]["basis"] == "kind"
+                                               and rows[r]["estimate"]["updates"] is None) for r in withheld), rows
+    assert "internal updates" not in "".join(progress["html"].split('id="run-')[i].split("</tr>")[0]
+                                             for i in range(1, progress["html"].count('id="run-') + 1)
+                                             if progress["html"].split('id="run-')[i].split('"')[0] in withheld)
     assert progress["html"].count("run-withheld") == len(withheld), progress["html"]
     staff_rows = {r["name"]: r for r in _get(api, f"/submissions/{sid}/progress.json", "prof").json()["runs"]}
     assert all(staff_rows[r]["wall_s"] is not None and not staff_rows[r]["withheld"] for r in withheld)
