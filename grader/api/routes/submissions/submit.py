@@ -112,6 +112,8 @@ def list_events(submission: SubmissionDep, session: SessionDep, user: CurrentUse
     its running state (pass 6)."""
     withheld = grade_view(session=session, submission=submission, user=user, report=False).withheld_runs
     ids = {r.id for r in submission.case_runs if r.name in withheld}
+    # an audit re-run of a withheld run tells what its source would (its time, its validation; pass 14)
+    ids |= {r.id for r in submission.audit_runs if r.source_case_run_id in ids}
     events = session.scalars(select(Event).where(Event.submission_id == submission.id).order_by(Event.id)).all()
     # a withheld run's events keep their states, in order, not their times (running -> done is its wall time, and a
     # reused run has no running) nor details; its "running" is left out, so a reuse looks like a run

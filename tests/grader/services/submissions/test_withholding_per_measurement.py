@@ -328,6 +328,16 @@ def test_a_students_own_config_of_a_withheld_runs_kind_is_withheld_whatever_it_m
     mine = [e for e in events if ids.get(e["case_run_id"]) in withheld]
     assert mine and all(e["at"] is None and e["state"] != "running" for e in mine), mine
     assert events[-len(mine):] == mine, events  # last, together: no timed event brackets them
+    # an audit re-run of a withheld run says what its source would (pass 14): its events too
+    audit = api.client.post(f"/v1/case-runs/{listed['N1']['id']}/audit-reruns", headers=api.as_("prof"),
+                            json={"backend": "cpu", "precision": "64", "mode": "isolated"})
+    assert audit.status_code == 202, audit.text
+    events = _get(api, f"/v1/submissions/{sid}/events").json()
+    audited = [e for e in events if e["case_run_id"] == audit.json()["id"]]
+    assert audited and all(e["at"] is None and e["detail"] in (None, "withheld") for e in audited), audited
+    staff_audited = [e for e in _get(api, f"/v1/submissions/{sid}/events", "prof").json()
+                     if e["case_run_id"] == audit.json()["id"]]
+    assert any("audit re-run" in (e["detail"] or "") for e in staff_audited), staff_audited
     assert all(listed[r]["tries"] is None for r in withheld) and listed["friction-baseline"]["tries"] is not None
     staff_events = _get(api, f"/v1/submissions/{sid}/events", "prof").json()
     assert any(e["detail"] not in (None, "withheld") for e in staff_events if ids.get(e["case_run_id"]) in withheld)
