@@ -173,8 +173,10 @@ def _check_nothing_waited(platform: Platform, what: str, quiet: list, during: li
           f"{sorted({code for code, _ in during})}; held while the platform answered: {held or 'nothing'}")
     assert [code for code, _ in quiet] == [303] * len(quiet)
     assert [code for code, _ in during] == [303] * len(during)  # never a 500 ("database is locked")
-    assert slowest < usual + SIGN_IN_SLOWER_BOUND_S
+    # what the tool held is asked first: a slow sign-in then says whether a lock or only the machine's load was behind
+    # it (a full-suite run saw one sign-in of 2.3 s on SQLite, with nothing known of what was held)
     assert held == []
+    assert slowest < usual + SIGN_IN_SLOWER_BOUND_S, sorted(t for _, t in during)[-5:]
     assert len(during) >= 2  # the sign-ins overlapped the wait
 
 
