@@ -20,8 +20,7 @@ from grader.core.variants import measuring_submissions
 from grader.core.models import Assignment, CaseRun, Course, Grade, Submission, utcnow
 from grader.services.setup import assignments
 from grader.services.errors import Conflict, NotFound
-from grader.services.submissions.visibility import (own_config_runs, readers, runs_answering, visibility_of,
-                                                    withheld_by)
+from grader.services.submissions.visibility import readers, runs_answering, visibility_of, withheld_by
 from rubric.exports import csv_text, grades_csv, gradescope_results
 from rubric.scoring import GradeReport
 
@@ -113,7 +112,7 @@ def gradescope(*, session: Session, submission: Submission) -> dict:
         raise Conflict(f"submission {submission.id} is {submission.status}, not graded")
     report = _report(grade)
     runs = submission.case_runs
-    names, kinds, configs = [r.name for r in runs], {r.name: r.kind for r in runs}, own_config_runs(submission)
+    names, kinds = [r.name for r in runs], {r.name: r.kind for r in runs}
     own, now = submission.assignment, utcnow()
     held: dict[str, set[str]] = {"after_due_date": set(), "after_published": set(), "hidden": set()}
     if own is not None:
@@ -134,7 +133,7 @@ def gradescope(*, session: Session, submission: Submission) -> dict:
     gates: dict[str, set[str]] = {}
     held_runs: dict[str, set[str]] = {}  # per gate, the runs withheld while the items held at it are (the kind rule)
     for gate, items in held.items():
-        for item in [*items, *readers(submission.lesson, items, names, kinds, configs)]:
+        for item in [*items, *readers(submission.lesson, items, names, kinds)]:
             gates.setdefault(item, set()).add(gate)
         held_kinds = {kinds[r] for reads in runs_answering(submission.lesson, items, names).values() for r in reads}
         held_runs[gate] = {r for r in names if kinds[r] in held_kinds}

@@ -28,8 +28,7 @@ from the student (`lesson_withheld`, any part) withholds the runs that could tel
 student's submissions of the lesson: the runs its scoring rule reads by declaration (the lesson's `runs_read`),
 whatever the item's verdict (a hidden item graded one_factor_violation or not_measured still asks about them), and
 whether or not the submission answers it (a checkpoint submission's lesson runs would answer an item of the
-exercises). An item whose verdict reads a run of a withheld kind (or, while a config item is withheld, a run of the
-student's own configs) is withheld with them (`readers`, issue 44 hostile pass 6): H3 credited at B3's own tolerance
+exercises). An item whose verdict reads a run of a withheld kind is withheld with them (`readers`, issue 44 hostile pass 6): H3 credited at B3's own tolerance
 answered a withheld B3, and H4's credit on four stop distances bounded the withheld runs' values.
 
 What a run measured, not its name, decides what it tells (issue 44): a run of the submission that measured the same as
@@ -68,7 +67,7 @@ from grader.core.models import Assignment, CaseEvidence, CaseRun, Grade, Submiss
 from grader.services.setup.assignments import always_shown, counted_for, dates_for, item_ids, penalty_fraction
 from grader.services.identity import access
 from rubric import load_rubric
-from rubric.lesson import SHEET_CASE_PREFIX, lesson
+from rubric.lesson import lesson
 
 
 def visibility_of(assignment: Assignment, item_id: str) -> str:
@@ -119,52 +118,36 @@ def runs_answering(lesson_name: str, items: Collection[str], runs: Sequence[str]
     return {i: names for i, names in out.items() if names}
 
 
-def readers(lesson_name: str, items: Collection[str], runs: Sequence[str], kinds: Mapping[str, str],
-            configs: Collection[str] = ()) -> dict[str, set[str]]:
+def readers(lesson_name: str, items: Collection[str], runs: Sequence[str], kinds: Mapping[str, str]) -> dict[str, set[str]]:
     """{item id: the items of `items` it is withheld with}: every other item of lesson `lesson_name` whose verdict
     would tell a withheld item's answer (issue 44, hostile pass 6): one whose rule reads (the lesson's `runs_read`,
     over the submission's `runs`) a run of a case kind that a withheld item's runs are of, as the kind rule withholds
-    every run of that kind; and, for a withheld config item (decided from the submitted configs), one reading a run of
-    the submission's own configs, whose verdict says whether the one-factor rule voided it. An item credited at a
-    withheld item's own tolerance on the same runs answered it, and one credited on four stop distances bounded the
-    withheld runs' values to 2 cm (docs/instructor.md gives the items). An item is withheld with them to keep their
-    answers, not for its own: nothing is withheld for its sake in turn (the runs it reads stay as they were).
-    `configs`: the runs the submission's own configs give, run or not (a config that broke the one-factor rule is
-    never run, and the items reading it are voided: the verdict that tells a withheld config item)."""
+    every run of that kind. An item credited at a withheld item's own tolerance on the same runs answered it, and one
+    credited on four stop distances bounded the withheld runs' values to 2 cm (docs/instructor.md gives the items).
+    An item is withheld with them to keep their answers, not for its own: nothing is withheld for its sake in turn
+    (the runs it reads stay as they were). A config item is never withheld (`always_shown`), so none asks here."""
     if not items:
         return {}
-    declared, rubric = lesson(lesson_name), load_rubric(lesson_name)
-    kind_of = {i.id: i.kind for i in rubric.items}
-    everything = [*runs, *(c for c in configs if c not in runs)]
-    reads = {i: set(declared.runs_read(i, everything)) for i in kind_of}
-    own_configs = set(configs) | {r for r in runs if r not in declared.cases}
-    held: dict[str, set[str]] = {}  # each withheld case kind ("kind:K") or config run ("run:R"), for which items
+    declared = lesson(lesson_name)
+    reads = {i.id: {kinds[r] for r in declared.runs_read(i.id, runs) if r in kinds}
+             for i in load_rubric(lesson_name).items}
+    held: dict[str, set[str]] = {}  # each withheld case kind, for which items
     for item in items:
-        for run in reads.get(item, ()):
-            if run in kinds:
-                held.setdefault("kind:" + kinds[run], set()).add(item)
-        if kind_of.get(item) == "config":
-            for run in own_configs:
-                held.setdefault("run:" + run, set()).add(item)
+        for kind in reads.get(item, ()):
+            held.setdefault(kind, set()).add(item)
     out: dict[str, set[str]] = {}
-    for item in kind_of:
-        marks = {"kind:" + kinds[r] for r in reads[item] if r in kinds} | {"run:" + r for r in reads[item]}
-        sources = set().union(*(held.get(m, set()) for m in marks)) - {item}
+    for item, kinds_read in reads.items():
+        sources = set().union(*(held.get(k, set()) for k in kinds_read)) - {item}
         if item not in items and sources:
             out[item] = sources
     return out
 
 
-def own_config_runs(submission: Submission) -> list[str]:
-    """The run names the submission's own configs give (its sheet's `configs`, by role), run or not."""
-    return [SHEET_CASE_PREFIX + role for role in ((submission.sheet or {}).get("configs") or {})]
-
-
 def with_readers(lesson_name: str, hidden: Mapping[str, str], runs: Sequence[str],
-                 kinds: Mapping[str, str], configs: Collection[str] = ()) -> dict[str, str]:
+                 kinds: Mapping[str, str]) -> dict[str, str]:
     """`hidden` ({item id: why}) and every item withheld with them (`readers`), saying with which."""
     out = dict(hidden)
-    for item, sources in sorted(readers(lesson_name, hidden, runs, kinds, configs).items()):
+    for item, sources in sorted(readers(lesson_name, hidden, runs, kinds).items()):
         why = "; ".join(sorted({hidden[s] for s in sources}))
         out[item] = f"{why} (its verdict reads the measurements that decide {', '.join(sorted(sources))})"
     return out
@@ -552,7 +535,7 @@ def grade_view(*, session: Session, submission: Submission, user: User, now: dat
     if lesson_hidden:  # and every item whose verdict would tell one of them (`readers`)
         runs = submission.case_runs
         shown_with = with_readers(submission.lesson, lesson_hidden, [r.name for r in runs],
-                                  {r.name: r.kind for r in runs}, own_config_runs(submission))
+                                  {r.name: r.kind for r in runs})
     return GradeView(submission=submission, stored=current_grade(session, submission.id, report=report),
                      hidden=_own_items(submission, shown_with), lesson_hidden=lesson_hidden)
 
