@@ -48,7 +48,7 @@ RUN --mount=type=cache,id=l03-grader-genesis-kernels,target=/home/grader/.kernel
     done \
     && mkdir -p /home/grader/.cache && cp -a /home/grader/.kernels/. /home/grader/.cache/ \
     && rm -rf /tmp/warm-* /tmp/case.json
-HEALTHCHECK --interval=30s --timeout=20s --retries=3 \
-    CMD celery -A worker.celery_app inspect ping -d "cpu-grade@$(hostname)" --timeout 10 || exit 1
+# Answers a ping by its node name (cpu-grade@HOST, below) and takes cases, every slot warm (grader.ops.worker_health).
+HEALTHCHECK --interval=30s --timeout=20s --retries=3 --start-period=10m CMD ["grader", "worker", "--healthy"]
 CMD ["celery", "-A", "worker.celery_app", "worker", "-Q", "cpu,grade", "-c", "1", "--pool", "prefork", \
      "-n", "cpu-grade@%h", "--loglevel", "info"]

@@ -17,7 +17,7 @@ COPY examples examples
 COPY grader grader
 RUN pip install --no-deps -e .
 USER grader
-HEALTHCHECK --interval=30s --timeout=20s --retries=3 \
-    CMD celery -A worker.celery_app inspect ping -d "rocm@$(hostname)" --timeout 10 || exit 1
+HEALTHCHECK --interval=30s --timeout=20s --retries=3 --start-period=10m \
+    CMD ["grader", "worker", "--queue", "rocm", "--healthy"]
 CMD ["celery", "-A", "worker.celery_app", "worker", "-Q", "rocm", "-c", "1", "--pool", "prefork", \
      "-n", "rocm@%h", "--loglevel", "info"]

@@ -93,6 +93,43 @@ def service_status(session: Session, *, timeout_s: float = 1.0) -> ServiceStatus
                                           for w in live])
 
 
+def _ping(node: str, timeout_s: float) -> bool | None:
+    """Whether the Celery worker named `node` answers a ping within timeout_s; None where the broker has no broadcast
+    (the embedded one)."""
+    # lazy: Celery loads only where a worker is asked (grader.main never loads it)
+    from worker.celery_app import app
+
+    if str(app.conf.broker_url).startswith("filesystem"):
+        return None
+    return any(node in reply for reply in app.control.ping(destination=[node], timeout=timeout_s) or [])
+
+
+def worker_health(node: str, *, timeout_s: float = 10.0, now: float | None = None) -> tuple[bool, str]:
+    """A worker's own health, its container's check (`grader worker --healthy`): it answers Celery's ping by its node
+    name, and its warm gate's record in the broker (grader.core.warmth, renewed every RENEW_S) is live and says it
+    takes cases, every case slot warm. A worker still warming up answers but is not healthy yet: it takes no case
+    (worker.warm_gate). Returns whether it is healthy and one line saying what was seen, warm gate included."""
+    try:
+        answered = _ping(node, timeout_s)
+        live = warmth.live()
+    except Exception as exc:  # noqa: BLE001 - a broker that does not answer is itself the thing to say
+        return False, f"unhealthy: the broker did not answer ({type(exc).__name__}: {exc})"
+    if answered is False:
+        return False, f"unhealthy: {node} did not answer a ping within {timeout_s:g} s"
+    if live is None:  # a broker that keeps no records: the ping alone says
+        return True, f"healthy: {node} answered (the broker keeps no warm-up records)"
+    record = next((w for w in live if w.name == node), None)
+    if record is None:
+        return False, (f"unhealthy: {node} renewed no warm-up record within {warmth.RECORD_TTL_S:.0f} s (its warm gate "
+                       "is not running)")
+    if not record.consuming:
+        since = (time.time() if now is None else now) - record.started_at
+        return False, (f"unhealthy: {node} is warming up, {record.warm} of {record.slots} case slots warm after "
+                       f"{since:.0f} s; it takes no case yet")
+    return True, (f"healthy: {node} {'answered' if answered else 'renews its record'}; {record.warm} of "
+                  f"{record.slots} case slots warm, taking cases (warmed up in {record.warm_s:.1f} s)")
+
+
 class StatusCollector:
     """A prometheus_client collector reading service_status at each scrape."""
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import socket
 import statistics
 import sys
 import time
@@ -86,9 +87,20 @@ def token(course: str | None, name: str | None, role: str | None, expires_in: in
 @click.option("--queue", "queues", multiple=True, default=("cpu", "grade"), show_default=True,
               type=click.Choice([*values(Backend), "grade"]), help="Queues to consume (repeatable).")
 @click.option("--loglevel", default="info", show_default=True)
-def worker(queues: tuple[str, ...], loglevel: str) -> None:
+@click.option("--healthy", is_flag=True,
+              help="Run no worker: exit 0 if this host's worker of these queues answers a ping and takes cases (every "
+                   "case slot warm), else 1, saying which (the container's health check).")
+def worker(queues: tuple[str, ...], loglevel: str, healthy: bool) -> None:
     """Run a Celery worker: WORKER_CONCURRENCY case slots (default one per core), each holding its own warm Genesis
     process; it takes cases once every slot is warm."""
+    if healthy:
+        from grader.ops import worker_health  # lazy: SQLAlchemy and Celery stay off `grader --help`
+
+        ok, said = worker_health(f"{'-'.join(queues)}@{socket.gethostname()}")
+        if not ok:
+            raise click.ClickException(said)
+        click.echo(said)
+        return
     # lazy: loads Celery and makes the filesystem broker's folders on import; only `grader worker` needs it
     from worker.celery_app import worker_argv
 
