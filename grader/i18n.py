@@ -199,7 +199,7 @@ MESSAGES = [
     N_("That token is unknown or has been revoked."), N_("submission refused"), N_("invalid sheet"),
     N_("invalid YAML"), N_("unknown assignment"), N_("cross-site request refused"),
     N_("This sign-in link is unknown. Check that the whole link was copied, or ask your instructor for a new one."),
-    N_("must be UTF-8 text"), N_("the file"),
+    N_("must be UTF-8 text"), N_("the file"), N_("invalid notebook"),
     # rubric.scoring: the expected answers stated in words (grader.i18n.expected)
     N_("no: also require clearance above tolerance"), N_("no: read proxy, contact, clearance and trajectory together"),
     N_("no: the hold interval must stay below threshold"), N_("false: improvement is not guaranteed"),

@@ -50,8 +50,10 @@ def parse_lock(text: str) -> dict[str, dict]:
     return pins
 
 
-def disagreements(pyproject: dict, lock_text: str, extras: tuple[str, ...]) -> list[str]:
-    """What makes a lock disagree with pyproject.toml, in words; empty when they agree."""
+def disagreements(pyproject: dict, lock_text: str, extras: tuple[str, ...],
+                  owner: str = "l03-grader (pyproject.toml)") -> list[str]:
+    """What makes a lock disagree with pyproject.toml, in words; empty when they agree. `owner`: how pip-compile
+    names the project in its `# via` lines."""
     wanted = requirements(pyproject, extras)
     pins = parse_lock(lock_text)
     problems = []
@@ -61,7 +63,7 @@ def disagreements(pyproject: dict, lock_text: str, extras: tuple[str, ...]) -> l
             problems.append(f"{req} is not pinned")
         elif not req.specifier.contains(pin["version"], prereleases=True):
             problems.append(f"{req} but the lock pins {pin['version']}")
-    ours = {name for name, pin in pins.items() if "l03-grader (pyproject.toml)" in pin["via"]}
+    ours = {name for name, pin in pins.items() if owner in pin["via"]}
     for name in sorted(ours - {canonicalize_name(r.name) for r in wanted}):
         problems.append(f"{name} is pinned as pyproject.toml's own requirement, which it no longer is")
     problems += [f"{name} has no hash" for name, pin in pins.items() if not pin["hashes"]]
@@ -86,6 +88,23 @@ def test_the_api_lock_holds_no_engine_and_the_worker_lock_does(pyproject):
     assert not ENGINE & set(api), "the API image must not install Genesis or torch"
     assert {"genesis-world", "torch"} <= set(worker)
     assert not {canonicalize_name(r.name) for r in requirements(pyproject, ())} & ENGINE
+
+
+# The notebook client (client/, issue 48) is a distribution of its own: its lock pins its pyproject.toml, and what a
+# student installs in their kernel holds no engine, database or queue.
+CLIENT = ROOT / "client" / "pyproject.toml"
+NOT_IN_THE_CLIENT = ENGINE | {"sqlalchemy", "celery", "kombu", "fastapi", "psycopg2-binary", "l03-grader"}
+
+
+def test_the_client_lock_agrees_with_the_clients_pyproject_and_holds_no_engine():
+    client = tomllib.loads(CLIENT.read_text())
+    text = (ROOT / "requirements" / "client.lock").read_text()
+    assert disagreements(client, text, (), owner="l03-grader-client (client/pyproject.toml)") == [], (
+        "requirements/client.lock disagrees with client/pyproject.toml: regenerate it as requirements/README.md says")
+    assert not NOT_IN_THE_CLIENT & set(parse_lock(text))
+    missing = re.sub(r"(?ms)^httpx==.*?(?=^\S)", "", text)
+    assert disagreements(client, missing, (), owner="l03-grader-client (client/pyproject.toml)") == [
+        "httpx>=0.27 is not pinned"]
 
 
 def test_a_lock_that_drifted_from_pyproject_is_caught(pyproject):

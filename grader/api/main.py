@@ -9,7 +9,7 @@ from grader.api.routes.lti import registrations
 from grader.api.routes.reports import audit, exports
 from grader.api.routes.rubrics import versions
 from grader.api.routes.setup import assignments, courses, variants
-from grader.api.routes.submissions import case_runs, files, review_requests, submit
+from grader.api.routes.submissions import case_runs, files, notebooks, review_requests, sheets, submit
 
 
 PREFIX = "/v1"
@@ -52,6 +52,8 @@ def single_query_values(request: Request) -> None:
 api_router = APIRouter(prefix=PREFIX, dependencies=[Depends(single_query_values)])
 api_router.include_router(health.router)
 api_router.include_router(submit.router)
+api_router.include_router(notebooks.router)
+api_router.include_router(sheets.router)
 api_router.include_router(files.router)
 api_router.include_router(courses.router)
 api_router.include_router(assignments.router)

@@ -55,6 +55,7 @@ def grade_public(view: GradeView) -> GradePublic:
         items=report.get("items", []), created_at=grade.created_at, superseded_at=grade.superseded_at,
         regrade_id=grade.regrade_id, pending=view.pending,
         withheld_measurements=report.get("withheld_measurements", {}),  # only a masked report has any
+        check=report.get("check"),  # a masked report has none (visibility.shown_report)
     )
 
 

@@ -156,6 +156,9 @@ class GradePublic(BaseModel):
     withheld_measurements: dict[str, str] = Field(default_factory=dict, description=(
         "{case run: why} of the runs whose measurements decide a withheld item: hidden until it is shown (their "
         "series, metrics, provenance, files, and the evidence of every item that reads them)"))
+    check: dict[str, Any] | None = Field(None, description=(
+        "The lab check the report page shows (verdict_line, the lesson's CHECK line, and each condition with its "
+        "evidence): None until the report is complete, and while any item is withheld from the caller"))
 
 
 class GradeHistoryEntry(BaseModel):

@@ -5,12 +5,14 @@ from fastapi import APIRouter
 
 from grader.pages.submissions import report
 from grader.pages.submissions import sheet_form
+from grader.pages.submissions import notebooks
 from grader.pages.submissions import progress
 from grader.pages.submissions import review_requests
 
 router = APIRouter(include_in_schema=False)
 router.include_router(report.router)
 router.include_router(sheet_form.router)
+router.include_router(notebooks.router)
 router.include_router(progress.router)
 router.include_router(review_requests.router)
 
