@@ -51,4 +51,4 @@ def test_a_lessons_reviewed_files_are_read_from_the_folder_its_declaration_names
                                                                                              'version: "2"'))
     monkeypatch.setattr(registry, "lesson", lambda name: dataclasses.replace(lesson(name), files=moved))
     assert rubric_versions("L03") == ["2"] and audit_versions("L03") == ["1", "2"]
-    assert variant_space_versions("L03") == ["1"] and load_rubric("L03").version == "2"
+    assert variant_space_versions("L03") == ["1", "2"] and load_rubric("L03").version == "2"

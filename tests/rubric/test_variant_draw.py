@@ -23,9 +23,9 @@ from rubric.variants import (
 )
 from tests.factories import ROOT
 
-SPACE = load_variant_space("L03")
+SPACE = load_variant_space("L03", "1")  # the mechanics on version 1, whose pools are stored (issue 47 added v2)
 SCRIPT = ("import json, sys; from rubric.variants import draw_pool, load_variant_space; "
-          "print(draw_pool(load_variant_space('L03'), int(sys.argv[1]), int(sys.argv[2])).model_dump_json())")
+          "print(draw_pool(load_variant_space('L03', '1'), int(sys.argv[1]), int(sys.argv[2])).model_dump_json())")
 
 
 def pool_json(seed: int, k: int) -> str:

@@ -9,7 +9,7 @@ from rubric import RubricGovernanceError, publish_variant_space
 from rubric.governance import variant_space_changes
 from rubric.variants import load_variant_space, parse_variant_space
 
-V1 = load_variant_space("L03")
+V1 = load_variant_space("L03", "1")
 NEW_REVIEW = {"reviewer": "second reviewer", "review_date": "2026-12-01"}  # not a clock time: a review record
 
 

@@ -58,7 +58,7 @@ def graded(data: dict, variant: Variant | None):
 
 
 def test_the_test_variant_is_one_the_shipped_space_can_draw():
-    space = load_variant_space("L03")
+    space = load_variant_space("L03", "1")
     assert space.violations(VARIANT.parameters) == []
     assert all(VARIANT.parameters[n] in values for n, values in space.choices().items())
 
@@ -111,7 +111,7 @@ def test_one_sheet_on_two_variants_gets_two_grades():
     other = Variant(id="v7-4", space_version="1", parameters=VARIANT.parameters | {
         "table_friction": 0.5, "exercise_table_friction": 0.3, "coarse_dt": 0.02, "more_substeps": 4,
         "base_substeps": 2, "fine_dt": 0.01})
-    assert load_variant_space("L03").violations(other.parameters) == []
+    assert load_variant_space("L03", "1").violations(other.parameters) == []
     on_other, _ = graded(data, other)
     assert on_own.total == RUBRIC.max_total > on_other.total
     # The other variant's table is 0.50 and its N4 runs dt 0.02 with 4 substeps: those answers are someone else's.

@@ -23,7 +23,7 @@ from rubric.variants.expr import RuleError, evaluate_rule, parse_rule
 
 @pytest.fixture
 def data() -> dict:
-    return load_variant_space("L03").model_dump(mode="json")
+    return load_variant_space("L03", "1").model_dump(mode="json")
 
 
 def refused(data: dict) -> str:
@@ -33,20 +33,20 @@ def refused(data: dict) -> str:
 
 
 def test_the_shipped_space_loads_for_rubric_v2_and_reviews_every_declaration():
-    assert variant_space_versions("L03") == ["1"]
-    space = load_variant_space("L03")
+    assert variant_space_versions("L03") == ["1", "2"]  # issue 47: v2 fitted from measurement
+    space = load_variant_space("L03", "1")
     assert (space.lesson, space.version, space.grading_rubric) == ("L03", "1", "2")
     assert set(space.parameters) <= set(PARAMETERS) and space.constraints
     for name, declared in [*space.parameters.items(), *space.constraints.items()]:
         assert len(declared.rationale) >= 20 and declared.reviewer and declared.review_date, name
     # The variant file is not a rubric version: the versions, and what "latest" means, are as before.
     assert "variants" not in " ".join(rubric_versions("L03"))
-    assert variant_space_for(load_rubric("L03", "2")) == space
+    assert variant_space_for(load_rubric("L03", "2")) == load_variant_space("L03", "2")  # the latest for v2 (issue 47)
     assert variant_space_for(load_rubric("L03", "1")) is None  # no variants: grades as it always did
 
 
 def test_range_values_are_exact_decimals_and_substeps_whole_numbers():
-    choices = load_variant_space("L03").choices()
+    choices = load_variant_space("L03", "1").choices()
     assert choices["cube_start_z"] == (0.9, 0.95, 1.0, 1.05, 1.1)
     assert choices["table_friction"] == (0.4, 0.45, 0.5, 0.55, 0.6)
     assert all(type(v) is int for v in choices["more_substeps"] + choices["extension_substeps"])
@@ -96,7 +96,7 @@ def test_each_broken_rule_is_named(data, edit, message):
 def test_a_variant_file_naming_an_unpublished_rubric_is_refused(tmp_path, monkeypatch):
     for path in rubrics.LESSONS_DIR.glob("L03-v*.yaml"):
         (tmp_path / path.name).write_text(path.read_text())
-    data = load_variant_space("L03").model_dump(mode="json") | {"grading_rubric": "7"}
+    data = load_variant_space("L03", "1").model_dump(mode="json") | {"grading_rubric": "7"}
     (tmp_path / "L03-lab-variants-v1.yaml").write_text(yaml.safe_dump(data))
     monkeypatch.setattr(rubrics, "lesson_folder", lambda lesson: tmp_path)
     with pytest.raises(ValueError, match="grading_rubric '7' is not a published rubric version of L03"):
@@ -106,7 +106,7 @@ def test_a_variant_file_naming_an_unpublished_rubric_is_refused(tmp_path, monkey
 
 
 def test_violations_name_the_constraint_and_the_values_it_read():
-    space = load_variant_space("L03")
+    space = load_variant_space("L03", "1")
     assert space.violations({}) == []  # the lesson's own parameters satisfy every constraint
     broken = space.violations({"low_lane_friction": 0.6, "fine_dt": 0.005})
     assert broken == [
@@ -133,3 +133,27 @@ def test_the_rule_language_evaluates_without_eval():
 
 def test_no_glob_for_rubric_versions_picks_up_the_variant_file():
     assert not [p.name for p in rubrics.LESSONS_DIR.glob("L03-v*.yaml") if "variant" in p.name]
+
+
+def test_version_2_is_version_1_fitted_to_where_the_lab_check_holds_published_with_a_review_of_each_change():
+    """Issue 47: v2 is what measurement left of v1 (docs/variants.md: tools.variant_space's report). Every variant it
+    draws runs N1 at the lesson's internal step of 0.01 s (v1's measured drops all ran it finer), and density no longer
+    varies (it changed nothing graded); every change from v1 carries a fresh review, so governance publishes it."""
+    from rubric import publish_variant_space
+    from rubric.governance import variant_space_changes
+    from rubric.variants import draw_pool
+
+    v1, v2 = load_variant_space("L03", "1"), load_variant_space("L03", "2")
+    assert publish_variant_space(v2, [v1], {"1"}) is v2
+    assert {"cube_rho", "fine_dt", "base_substeps"} & set(v2.parameters) == set()
+    assert v2.constraints["n1_internal_step_as_lesson"].rule == "close(fine_dt / base_substeps, 0.01)"
+    assert "constraints.n1_internal_step_as_lesson: absent -> {'rule': 'close(fine_dt / base_substeps, 0.01)'}" in \
+        variant_space_changes(v1, v2)
+    shipped = v2.fill({})  # every parameter v2 does not vary at its shipped value
+    for seed in (1, 2, 3):
+        for v in draw_pool(v2, seed, 16).variants:
+            p = v.parameters
+            assert abs(p["fine_dt"] / p["base_substeps"] - 0.01) < 1e-12 and p["cube_rho"] == shipped["cube_rho"], v.id
+            assert abs(p["coarse_dt"] / p["more_substeps"] - 0.01) < 1e-12, v.id  # N4 shares N1's step
+    # The constraint is what screens a finer N1 step, should a later version list fine_dt again.
+    assert v2.violations({"fine_dt": 0.005}) and v1.violations({"fine_dt": 0.005, "coarse_dt": 0.01}) == []
