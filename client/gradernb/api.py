@@ -24,7 +24,7 @@ class Grader:
     """One signed-in student (or instructor) of one service. `language`: "en" or "zh" for questions and words."""
 
     def __init__(self, url: str, token: str, *, language: str = "en", timeout: float = 30.0):
-        self.url, self.language = url.rstrip("/"), language
+        self.url, self.language, self.token = url.rstrip("/"), language, token
         self.http = httpx.Client(base_url=self.url + "/v1", headers={"Authorization": f"Bearer {token}"},
                                  timeout=timeout)
 
@@ -58,9 +58,22 @@ class Grader:
         return Submission(self, self.call("GET", f"/submissions/{submission_id}"))
 
 
-def connect(url: str | None = None, token: str | None = None, *, language: str = "en") -> Grader:
-    """Sign in with your token (from your instructor, or `GRADER_TOKEN`); `url` the service (or `GRADER_URL`). The
+def connect(url: str | None = None, token: str | None = None, *, link: str | None = None,
+            language: str = "en") -> Grader:
+    """Sign in with your token (from your instructor, or `GRADER_TOKEN`), or with your sign-in link (`link=`, the
+    whole `https://.../sign-in/link/...`: it is used up, as pressing its button is, and the notebook gets a token
+    for 7 days; keep `grader.token` to sign in again). `url` is the service (or `GRADER_URL`; a link names it). The
     token is checked at once: a wrong or revoked one is said here, not at the first submission."""
+    if link is not None:
+        base, _, secret = link.rstrip("/").partition("/sign-in/link/")
+        if not secret:
+            raise GraderError(0, "a sign-in link looks like https://SERVICE/sign-in/link/SECRET")
+        url = url or base
+        response = httpx.post(f"{url.rstrip('/')}/v1/sign-in-links/{secret}/token", timeout=30.0)
+        if response.is_error:
+            raise GraderError(response.status_code, response.json().get("detail", response.text[:300])
+                              if "json" in response.headers.get("content-type", "") else response.text[:300])
+        token = response.json()["token"]
     url = url or os.environ.get("GRADER_URL")
     token = token or os.environ.get("GRADER_TOKEN")
     if not url or not token:

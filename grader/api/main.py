@@ -4,7 +4,7 @@ from fastapi import APIRouter, Depends, Request
 from fastapi.exceptions import RequestValidationError
 
 from grader.api.routes import health
-from grader.api.routes.identity import tokens
+from grader.api.routes.identity import sign_in_links, tokens
 from grader.api.routes.lti import registrations
 from grader.api.routes.reports import audit, exports
 from grader.api.routes.rubrics import versions
@@ -63,5 +63,6 @@ api_router.include_router(versions.router)
 api_router.include_router(audit.router)
 api_router.include_router(case_runs.router)
 api_router.include_router(tokens.router)
+api_router.include_router(sign_in_links.router)
 api_router.include_router(registrations.router)
 api_router.include_router(review_requests.router)

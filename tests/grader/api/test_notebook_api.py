@@ -90,3 +90,17 @@ def test_a_bad_notebook_is_refused_whole_and_a_good_one_submitted(api, aid):
     with new_session() as session:
         stored = session.get(Submission, taken.json()["id"])
         assert stored.sheet == reference_sheet() | {"student": "alice"}
+
+
+def test_a_sign_in_link_gives_the_notebook_a_token_once(api, aid):
+    issued = api.client.post("/v1/courses/l03/students/alice/sign-in-link", headers=api.as_("prof"))
+    assert issued.status_code == 200, issued.text
+    secret = issued.json()["sign_in_link"].rsplit("/sign-in/link/", 1)[1]
+    used = api.client.post(f"/v1/sign-in-links/{secret}/token")
+    assert used.status_code == 200, used.text
+    assert (used.json()["user"], used.json()["course"], used.json()["expires_in_days"]) == ("alice", "l03", 7)
+    mine = api.client.get("/v1/sheets", headers={"Authorization": f"Bearer {used.json()['token']}"})
+    assert mine.status_code == 200 and [a["id"] for a in mine.json()] == [aid]
+    again = api.client.post(f"/v1/sign-in-links/{secret}/token")
+    assert again.status_code == 404 and "used" in again.json()["detail"], again.text
+    assert api.client.post("/v1/sign-in-links/not-a-link/token").status_code == 404
