@@ -97,8 +97,9 @@ class Client:
     def generate_variants(self, assignment_id: int, body: dict) -> dict:
         return self._ok(self.http.post(f"/assignments/{assignment_id}/variants", json=body))
 
-    def top_up_variants(self, assignment_id: int) -> dict:
-        return self._ok(self.http.post(f"/assignments/{assignment_id}/variants/top-up"))
+    def top_up_variants(self, assignment_id: int, more: int | None = None) -> dict:
+        body = {"more": more} if more is not None else None
+        return self._ok(self.http.post(f"/assignments/{assignment_id}/variants/top-up", json=body))
 
     def variants(self, assignment_id: int) -> dict:
         return self._ok(self.http.get(f"/assignments/{assignment_id}/variants"))

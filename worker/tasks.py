@@ -16,7 +16,7 @@ from sqlalchemy.orm import Session
 from grader.core import lifecycle
 from grader.core.db import make_engine, new_session
 from grader.core.settings import settings
-from grader.core.variants import pool_runs
+from grader.core.variants import continue_pool, pool_runs
 from worker import grading, slot, warm_gate
 from worker.audit import audit_finished_run
 from worker.case_run import process_case_run
@@ -65,13 +65,27 @@ def grade_submission(submission_id: int) -> None:
     with new_session() as session:
         grading.grade_submission(session=session, submission_id=submission_id)
     complete_grade.apply_async(args=[submission_id], queue=COMPLETE_QUEUE, priority=lifecycle.COMPLETE_PRIORITY)
+    _continue_pool(submission_id)  # a measuring submission that failed to grade dropped its variant
 
 
 @app.task(name="worker.tasks.complete_grade", **RETRY)
 def complete_grade(submission_id: int) -> None:
-    """Add the lab check to a stored grade (worker.grading.complete_grade), once."""
+    """Add the lab check to a stored grade (worker.grading.complete_grade), once; a pool variant it measures is then
+    kept or dropped, and a pool that may no longer keep K is drawn further (grader.core.variants.continue_pool)."""
     with new_session() as session:
         grading.complete_grade(session=session, submission_id=submission_id)
+    _continue_pool(submission_id)
+
+
+def _continue_pool(submission_id: int) -> None:
+    """Send what drawing a pool further stored (new measuring runs behind every student's, at POOL_PRIORITY); stored
+    and queued if sending fails: the reconciler re-sends it."""
+    with new_session() as session:
+        runs, grades = continue_pool(session, submission_id)
+    for case_run_id, delivery, backend in runs:
+        run_case_run.apply_async(args=[case_run_id, delivery], queue=backend, priority=lifecycle.POOL_PRIORITY)
+    for measured in grades:
+        grade_submission.apply_async(args=[measured], queue=GRADE_QUEUE)
 
 
 @worker_process_shutdown.connect

@@ -104,7 +104,21 @@ class VariantPoolCreate(BaseModel):
     """A variant pool to draw for an assignment before it opens (issue 34)."""
 
     seed: int = Field(ge=0, le=2**31 - 1, description="The draw's seed: the same seed draws the same pool")
-    k: int = Field(default=16, ge=1, le=64, description="How many variants to draw and measure")
+    k: int = Field(default=16, ge=1, le=64, description="How many variants to keep: the pool draws and measures until "
+                  "K pass the lesson's lab check or its draw budget is spent (issue 47)")
+    budget: int | None = Field(default=None, ge=1, le=256, description="The most variants the pool may draw and measure "
+                               "to keep K (K to 4 x K; default 2 x K)")
+    minimum: int | None = Field(default=None, ge=1, le=64, description="How many must be kept before students get one "
+                                "(1 to K); default: once the pool is ready")
+    space_version: str | None = Field(default=None, max_length=32, pattern=r"^[0-9]+(\.[0-9]+)*$",
+                                      description="The variant space version to draw from (one reviewed for the "
+                                      "course's rubric version); default: the latest")
+
+
+class VariantPoolTopUp(BaseModel):
+    """Variants to add to a pool at any time (issue 47); none: draw the K - kept a ready pool lacks."""
+
+    more: int | None = Field(default=None, ge=1, le=64, description="How many more variants to keep")
 
 
 class RosterStudentPublic(BaseModel):

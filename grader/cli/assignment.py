@@ -152,22 +152,30 @@ def variants() -> None:
 @variants.command("generate")
 @click.argument("assignment_id", type=int)
 @click.option("--seed", type=int, required=True, help="The draw's seed: the same seed draws the same pool")
-@click.option("-k", "--k", "k", type=int, default=16, show_default=True, help="How many variants to draw")
+@click.option("-k", "--k", "k", type=int, default=16, show_default=True,
+              help="How many variants to keep: drawn and measured until K pass the lab check or the budget is spent")
+@click.option("--budget", type=int, default=None, help="The most variants to draw (K to 4 x K; default 2 x K)")
+@click.option("--minimum", type=int, default=None,
+              help="Variants kept before students get one (1 to K; default: once the pool is ready)")
 @URL
 @TOKEN
-def generate_variants(assignment_id: int, seed: int, k: int, url: str, token: str) -> None:
-    """Draw K variants for ASSIGNMENT_ID and queue their lesson runs; `list` shows which are kept as checks land."""
-    pool = _call(_client(url, token).generate_variants, assignment_id, {"seed": seed, "k": k})
+def generate_variants(assignment_id: int, seed: int, k: int, budget: int | None, minimum: int | None, url: str,
+                      token: str) -> None:
+    """Keep K variants for ASSIGNMENT_ID and queue their lesson runs; `list` shows which are kept as checks land."""
+    body = {"seed": seed, "k": k} | ({"budget": budget} if budget else {}) | ({"minimum": minimum} if minimum else {})
+    pool = _call(_client(url, token).generate_variants, assignment_id, body)
     _echo_pool(pool)
 
 
 @variants.command("top-up")
 @click.argument("assignment_id", type=int)
+@click.option("--more", type=int, default=None, help="Variants more to keep (at any time; students keep theirs)")
 @URL
 @TOKEN
-def top_up_variants(assignment_id: int, url: str, token: str) -> None:
-    """Draw ASSIGNMENT_ID's pool further from its seed until K variants may be kept, and measure the new ones."""
-    _echo_pool(_call(_client(url, token).top_up_variants, assignment_id))
+def top_up_variants(assignment_id: int, more: int | None, url: str, token: str) -> None:
+    """Draw ASSIGNMENT_ID's pool further from its seed (MORE variants more to keep, or the K - kept it lacks) and
+    measure the new ones."""
+    _echo_pool(_call(_client(url, token).top_up_variants, assignment_id, more))
 
 
 @variants.command("list")
@@ -205,7 +213,7 @@ def copy_flags(assignment_id: int, url: str, token: str) -> None:
 def _echo_pool(pool: dict) -> None:
     click.echo(f"assignment #{pool['assignment_id']}: pool of {pool['k']} (seed {pool['seed']}, {pool['lesson']} "
                f"variant space v{pool['space_version']}, rubric v{pool['rubric_version']}): {pool['state']}, "
-               f"{pool['kept']} kept, {pool['dropped']} dropped")
+               f"{pool['kept']} kept, {pool['dropped']} dropped; {pool['outcome']}")
     for v in pool["variants"]:
         click.echo(f"  {v['id']:<10} {v['state']:<9} {v['students']:>3} students"
                    + (f"  {v['reason']}" if v["reason"] else ""))

@@ -676,7 +676,11 @@ class VariantPool(Base):
     space_hash: Mapped[str] = mapped_column(String(64))
     rubric_version: Mapped[str] = mapped_column(String(32))  # the course's version the variants are checked under
     seed: Mapped[int] = mapped_column(Integer)
-    k: Mapped[int] = mapped_column(Integer)
+    k: Mapped[int] = mapped_column(Integer)  # the variants to keep (issue 47), not the number drawn
+    # The most variants the pool may draw and measure to keep K (NULL: a pool from before issue 47, which drew K).
+    draw_budget: Mapped[int | None] = mapped_column(Integer)
+    # How many must be kept before a student gets one (NULL: K, as before issue 47).
+    minimum: Mapped[int | None] = mapped_column(Integer)
     state: Mapped[str] = mapped_column(String(16))  # grader.core.states.PoolState
     rejected: Mapped[list[Any]] = mapped_column(JSON, default=list)
     created_by_id: Mapped[int] = mapped_column(ForeignKey("users.id"))

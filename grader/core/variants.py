@@ -7,17 +7,21 @@ service (grader.services.setup.variants) draws, stores and measures pools and as
 
 from __future__ import annotations
 
+import copy
 import logging
 
 from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 import rubric
 from rubric.copying import copy_evidence
 
-from grader.core.lifecycle import NEW_PRIORITY, POOL_PRIORITY, stored_result
-from grader.core.models import CaseRun, CopyFlag, Event, Grade, PoolVariant, Submission, utcnow
-from grader.core.states import PoolState, VariantState
+from grader.core.lifecycle import NEW_PRIORITY, POOL_PRIORITY, reuse_at_admission, stored_result
+from grader.core.models import CaseRun, CopyFlag, Event, Grade, PoolVariant, Submission, User, VariantPool, utcnow
+from grader.core.rubrics import course_rubric
+from grader.core.states import CaseRunState, PoolState, VariantState
+from grader.core.submissions import create_submission
 
 log = logging.getLogger(__name__)
 
@@ -69,6 +73,106 @@ def decide(session: Session, row: PoolVariant, *, kept: bool, reason: str | None
     if pool.state != PoolState.READY and all(v.state in (VariantState.KEPT, VariantState.DROPPED)
                                              for v in pool.variants):
         pool.state, pool.ready_at = PoolState.READY, utcnow()
+
+
+def draw_budget(pool: VariantPool) -> int:
+    """The most variants `pool` may draw and measure to keep K (a pool from before issue 47: K)."""
+    return pool.draw_budget if pool.draw_budget is not None else pool.k
+
+
+def kept_count(pool: VariantPool) -> int:
+    return sum(v.state == VariantState.KEPT for v in pool.variants)
+
+
+def serves_students(pool: VariantPool) -> bool:
+    """Whether students get a variant now: once `minimum` are kept (the pool may still be measuring more), or, for a
+    pool without one, once nothing is left to measure and at least one is kept (as before issue 47)."""
+    kept = kept_count(pool)
+    if pool.minimum is not None:
+        return kept >= pool.minimum
+    return pool.state == PoolState.READY and kept > 0
+
+
+def outcome(pool: VariantPool) -> str:
+    """What the pool says about K: kept, still drawing, or its draw budget spent, in one sentence for staff."""
+    kept, drawn, budget = kept_count(pool), len(pool.variants), draw_budget(pool)
+    if pool.state != PoolState.READY:
+        return f"measuring: {kept} of {pool.k} kept so far, {drawn} of at most {budget} variants drawn"
+    if kept >= pool.k:
+        return f"kept {kept} of the {pool.k} asked for, in {drawn} variants drawn"
+    return (f"the draw budget is spent: kept {kept} of the {pool.k} asked for after {drawn} variants drawn (at most "
+            f"{budget}); top up to draw more")
+
+
+def _measuring_sheet(session: Session, pool: VariantPool, variant: rubric.Variant) -> dict | None:
+    """A new variant's measuring sheet, made from one the pool already measured: the same answers, each config
+    replaced by the new variant's case of the same name. None when none of the pool's variants was measured."""
+    template = next((v.submission_id for v in pool.variants if v.submission_id is not None), None)
+    if template is None:
+        return None
+    sheet = copy.deepcopy(session.get(Submission, template).sheet)
+    cases = variant.cases()
+    sheet["student"] = f"variant-{variant.id}"
+    sheet["configs"] = {role: cases[config["name"]].model_dump(mode="json", exclude_computed_fields=True)
+                        for role, config in (sheet.get("configs") or {}).items()}
+    return sheet
+
+
+def continue_pool(session: Session, submission_id: int) -> tuple[list[tuple[int, int, str]], list[int]]:
+    """K means kept (issue 47): once a measuring submission's lab check landed, draw the pool further from its seed
+    when it may no longer keep K (kept + still measuring < K) and its draw budget allows, and measure the new variants
+    as the first were (each one measuring submission by the pool's creator). Commits. Returns what to send: the new
+    case runs (id, delivery, backend), at lifecycle.POOL_PRIORITY, and the submissions whose runs were all stored
+    already (their grade task). Nothing for any other submission. Sent by the worker (worker.tasks), which may send
+    case runs as it re-sends a dead process's."""
+    row = session.scalar(select(PoolVariant).where(PoolVariant.submission_id == submission_id))
+    if row is None:
+        return [], []
+    pool = session.get(VariantPool, row.pool_id, with_for_update=True, populate_existing=True)
+    session.refresh(pool, ["variants"])
+    open_ = sum(v.state in (VariantState.DRAWN, VariantState.MEASURING) for v in pool.variants)
+    short = pool.k - kept_count(pool) - open_
+    room = draw_budget(pool) - len(pool.variants)
+    if short <= 0 or room <= 0:
+        session.rollback()
+        return [], []
+    space = rubric.load_variant_space(pool.lesson, pool.space_version)
+    if space.content_hash != pool.space_hash:
+        log.error("pool %s: variant space %s v%s changed since it was drawn; not drawn further", pool.id,
+                  pool.lesson, pool.space_version)
+        session.rollback()
+        return [], []
+    try:
+        drawn = rubric.draw_pool(space, seed=pool.seed, k=len(pool.variants) + min(short, room)).variants
+    except rubric.VariantPoolError as exc:  # the space holds no more: measure what it still gave
+        drawn = exc.pool.variants
+    book = course_rubric(session, pool.assignment.course_id, pool.lesson)
+    creator = session.get(User, pool.created_by_id)
+    runs, grades = [], []
+    for position, variant in enumerate(drawn[len(pool.variants):], start=len(pool.variants) + 1):
+        new = PoolVariant(pool_id=pool.id, name=variant.id, position=position, parameters=variant.parameters,
+                          digest=variant.digest, state=VariantState.DRAWN)
+        session.add(new)
+        session.flush()
+        sheet = _measuring_sheet(session, pool, variant)
+        if sheet is None:  # nothing measured yet to make a sheet from: the instructor's top-up measures it
+            continue
+        specs = rubric.cases_to_run(rubric.parse_sheet(sheet), book, variant)
+        submission = create_submission(session=session, student=creator, lesson=pool.lesson, sheet=sheet,
+                                       specs=specs, force_rerun=False)
+        submission.variant_id = new.id
+        new.submission_id, new.state = submission.id, VariantState.MEASURING
+        session.flush()
+        if reuse_at_admission(session=session, submission=submission):
+            grades.append(submission.id)
+        runs += [(r.id, r.delivery, r.backend) for r in submission.case_runs if r.status == CaseRunState.QUEUED]
+    pool.state, pool.ready_at = PoolState.MEASURING, None
+    try:
+        session.commit()
+    except IntegrityError:  # drawn further meanwhile by another lab check landing: that one measures them
+        session.rollback()
+        return [], []
+    return runs, grades
 
 
 def drop_reason(check) -> str:
@@ -154,6 +258,7 @@ def try_flag_copying(session: Session, submission: Submission, grade: Grade, rep
                           detail=f"copy evidence not computed ({type(exc).__name__}); see the service log"))
 
 
-__all__ = ["as_variant", "decide", "drop_reason", "flag_copying", "measured_variant", "measuring_submissions",
+__all__ = ["as_variant", "continue_pool", "decide", "draw_budget", "drop_reason", "kept_count", "outcome",
+           "serves_students", "flag_copying", "measured_variant", "measuring_submissions",
            "pool_runs", "runs_on", "record_check", "record_failure", "send_priority", "submission_variant",
            "try_flag_copying"]

@@ -52,7 +52,9 @@ def test_two_students_read_their_own_measured_lab_on_the_course_page_and_the_for
                                               "v34zh,Wang Li,wang@example.edu\n", links=True)
     tokens = {s["student"]: s["token"] for s in students}
 
-    pool = prof.generate_variants(aid, {"seed": SEED, "k": K})
+    # variant space v1 and a budget of K: the measured pool this test was written on (issue 47 added v2 and drawing
+    # further past drops)
+    pool = prof.generate_variants(aid, {"seed": SEED, "k": K, "budget": K, "space_version": "1"})
     assert [v["id"] for v in pool["variants"]] == [f"v{SEED}-{n}" for n in range(1, K + 1)], pool
     pool = wait_until(lambda: (p := prof.variants(aid))["state"] == "ready" and p,
                       "the pool's variants measured and checked")
@@ -62,7 +64,7 @@ def test_two_students_read_their_own_measured_lab_on_the_course_page_and_the_for
         row.open_at = row.open_at.replace(year=row.open_at.year - 1)
         session.commit()
 
-    drawn = {v.id: v for v in rubric.draw_pool(rubric.load_variant_space("L03"), seed=SEED, k=K).variants}
+    drawn = {v.id: v for v in rubric.draw_pool(rubric.load_variant_space("L03", "1"), seed=SEED, k=K).variants}
     book = rubric.load_rubric("L03")
     seen = {}
     for who, locale in (("v34en", "en"), ("v34zh", "zh")):

@@ -30,7 +30,9 @@ pytestmark = [pytest.mark.integration, pytest.mark.xdist_group("variants")]
 SEED = 391
 FAILS_CHECK, KEPT, BROKEN = "v391-1", ["v391-2", "v391-3"], "v391-4"
 
-# Generate the pool through the service, break its fourth variant (the low lane above the table, so B1 would have no
+# Variant space v1 with a draw budget of K: the measured pool this test was written on (issue 47 added v2, whose draws
+# keep their lab check, and a pool that draws past its drops). Generate the pool through the service, break its fourth
+# variant (the low lane above the table, so B1 would have no
 # answer), then measure: run in a process of the stack's own environment, so its case runs go to the stack's broker.
 GENERATE = """
 import sys
@@ -43,7 +45,7 @@ from grader.services.setup import variants
 with new_session() as session:
     prof = session.scalar(select(User).where(User.name == "prof"))
     pool = variants.generate(session=session, assignment=session.get(Assignment, int(sys.argv[1])), user=prof,
-                             seed=int(sys.argv[2]), k=4)
+                             seed=int(sys.argv[2]), k=4, budget=4, space_version="1")
     broken = pool.variants[3]
     broken.parameters = {**broken.parameters, "low_lane_friction": 0.7}
     session.commit()

@@ -46,6 +46,7 @@ def _page(request: Request, session, user, assignment: Assignment, *, section: s
         "changes": course_changes.of_course(session=session, course=assignment.course, assignment=assignment),
         "pool": _pool(session, user, assignment, request_locale(request)), "k_default": pools.K_DEFAULT,
         "k_max": pools.k_max(), "seed_max": SEED_MAX, "opened": assignment.open_at <= utcnow(),
+        "spaces": pools.space_versions(session=session, assignment=assignment),
         "section": section, "errors": errors or [], "refused": refused, "v": posted or {}}, status_code=status_code)
 
 
@@ -144,17 +145,24 @@ def revoke_extension(request: Request, assignment: InstructorsAssignment, sessio
 
 @router.post("/assignments/{assignment_id}/variants", response_class=HTMLResponse)
 def generate_pool(request: Request, assignment: InstructorsAssignment, session: SessionDep, user: SignedIn,
-                  seed: str = Form(""), k: str = Form("")):
-    """Draw a pool of K variants from the seed and send every variant's lesson runs to the workers (the API's
-    POST /v1/assignments/ID/variants, with the page's sign-in)."""
-    posted = {"seed": seed, "k": k}
+                  seed: str = Form(""), k: str = Form(""), budget: str = Form(""), minimum: str = Form(""),
+                  space_version: str = Form("")):
+    """Keep K variants drawn from the seed, and send every variant's lesson runs to the workers (the API's
+    POST /v1/assignments/ID/variants, with the page's sign-in); the budget and minimum may be left empty."""
+    posted = {"seed": seed, "k": k, "budget": budget, "minimum": minimum, "space_version": space_version}
     (seed_value, seed_error), (k_value, k_error) = _whole(seed, "seed", 0, SEED_MAX), _whole(k, "k", 1, pools.k_max())
-    if seed_error or k_error:
+    top = (k_value or 1)
+    budget_value, budget_error = _whole(budget, "budget", top, pools.BUDGET_FACTOR_MAX * top) if budget.strip() \
+        else (None, None)
+    minimum_value, minimum_error = _whole(minimum, "minimum", 1, top) if minimum.strip() else (None, None)
+    problems = [e for e in (seed_error, k_error, budget_error, minimum_error) if e]
+    if problems:
         return _page(request, session, user, assignment, section="variants", posted=posted,
-                     errors=[e for e in (seed_error, k_error) if e], status_code=status.HTTP_422_UNPROCESSABLE_CONTENT)
+                     errors=problems, status_code=status.HTTP_422_UNPROCESSABLE_CONTENT)
     try:
         pools.generate_and_measure(session=session, assignment=assignment, user=user, seed=seed_value, k=k_value,
-                                   sender=dispatch)
+                                   budget=budget_value, minimum=minimum_value,
+                                   space_version=space_version.strip() or None, sender=dispatch)
     except (Invalid, Conflict) as exc:
         session.rollback()
         return _page(request, session, user, assignment, section="variants", posted=posted, refused=exc,
@@ -163,10 +171,18 @@ def generate_pool(request: Request, assignment: InstructorsAssignment, session: 
 
 
 @router.post("/assignments/{assignment_id}/variants/top-up", response_class=HTMLResponse)
-def top_up_pool(request: Request, assignment: InstructorsAssignment, session: SessionDep, user: SignedIn):
-    """Draw the pool further from its seed, one variant per dropped one, and measure them."""
+def top_up_pool(request: Request, assignment: InstructorsAssignment, session: SessionDep, user: SignedIn,
+                more: str = Form("")):
+    """Draw the pool further from its seed and measure the new variants: MORE variants more to keep (at any time), or
+    without it the K - kept a ready pool lacks."""
+    more_value = None
+    if more.strip():
+        more_value, error = _whole(more, "more", 1, pools.k_max())
+        if error:
+            return _page(request, session, user, assignment, section="top-up", errors=[error], posted={"more": more},
+                         status_code=status.HTTP_422_UNPROCESSABLE_CONTENT)
     try:
-        pools.top_up(session=session, assignment=assignment, user=user, sender=dispatch)
+        pools.top_up(session=session, assignment=assignment, user=user, sender=dispatch, more=more_value)
     except (Invalid, Conflict) as exc:
         session.rollback()
         return _page(request, session, user, assignment, section="top-up", refused=exc, status_code=status_of(exc))

@@ -15,7 +15,7 @@ from sqlalchemy.orm import Session
 import rubric
 from grader.core.models import Assignment, PoolVariant, StudentVariant, User, VariantPool
 from grader.core.states import PoolState, VariantState
-from grader.core.variants import as_variant
+from grader.core.variants import as_variant, serves_students
 from grader.services.errors import Conflict, NotFound
 
 
@@ -24,7 +24,9 @@ def variant_for(*, session: Session, assignment: Assignment, student: User) -> P
     the assignment has no pool. Conflict while the pool is still measuring or keeps no variant.
 
     Even and deterministic: the kept variant with the fewest students so far, ties broken by a hash of (assignment,
-    student, variant id), so a class spreads over the pool and the same history gives the same assignment."""
+    student, variant id), so a class spreads over the pool and the same history gives the same assignment. A pool
+    topped up later (issue 47) serves its new variants to the next students, the least used, while nobody's changes.
+    Served once grader.core.variants.serves_students says so (its minimum kept, or ready)."""
     if assignment.course_id != student.course_id:
         raise NotFound("assignment not found")
     fixed = session.scalar(select(StudentVariant).where(StudentVariant.assignment_id == assignment.id,
@@ -35,9 +37,11 @@ def variant_for(*, session: Session, assignment: Assignment, student: User) -> P
     if pool is None:
         return None
     kept = [v for v in pool.variants if v.state == VariantState.KEPT]
-    if pool.state != PoolState.READY or not kept:
+    if not serves_students(pool):
+        # Never a dead end (issue 47): the instructor's pool page offers the next step (a top-up); the student is told
+        # the lab is being prepared, not that someone must start again.
         why = ("its variants are still being measured" if pool.state != PoolState.READY
-               else "every variant of its pool was dropped: the instructor must generate another")
+               else "your instructor is preparing more variants of it (the pool page offers them a top-up)")
         rule = f"assignment {assignment.id} has no lab for you yet: {why}"
         raise Conflict(rule, [{"field": "assignment_id", "rule": rule}])
     counts = Counter(session.scalars(select(StudentVariant.variant_id)

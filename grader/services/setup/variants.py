@@ -32,7 +32,7 @@ from grader.core.models import (Assignment, CaseRun, CopyFlag, Course, PoolVaria
 from grader.core.rubrics import course_rubric
 from grader.core.settings import settings
 from grader.core.states import CaseRunState, PoolState, VariantState
-from grader.core.variants import as_variant, decide
+from grader.core.variants import as_variant, decide, draw_budget, outcome, serves_students
 from grader.services.errors import Conflict, Invalid, NotFound, Refused
 from grader.services.identity import access
 from grader.services.sending import Sender
@@ -41,6 +41,9 @@ from grader.services.submissions.submit import create_submission
 log = logging.getLogger(__name__)
 
 K_DEFAULT, K_MAX = 16, 64
+# The draw budget when the instructor states none: twice K (the shipped space keeps >= 75% of its draws, issue 47), and
+# at most this many times K when they do.
+BUDGET_FACTOR, BUDGET_FACTOR_MAX = 2, 4
 # A pool refused while others are measuring: when to ask again (its page says how many of their runs remain).
 BUSY_RETRY_AFTER_S = 60
 # The answers a measuring submission carries (the lesson's reference sheet; its grade is never a student's). Its
@@ -86,6 +89,11 @@ class PoolView(BaseModel):
     rubric_version: str
     seed: int
     k: int
+    draw_budget: int
+    minimum: int | None
+    drawn: int
+    outcome: str
+    serving: bool
     state: str
     kept: int
     dropped: int
@@ -145,8 +153,17 @@ def _refuse_past_measuring_caps(session: Session, course_id: int, user: User) ->
                                                                    "measuring": [p.assignment.title for p in busy]})
 
 
-def _space_for(session: Session, assignment: Assignment):
+def _space_for(session: Session, assignment: Assignment, version: str | None = None):
+    """The course's rubric and the variant space a new pool draws from: `version` if given (one reviewed for that
+    rubric version), else the latest reviewed for it."""
     book = course_rubric(session, assignment.course_id, assignment.lesson)
+    if version is not None:
+        known = space_versions(session=session, assignment=assignment)
+        if version not in known:
+            raise Invalid("no such variant space", [{"field": "space_version", "rule": (
+                f"one of the {assignment.lesson} variant spaces reviewed for rubric v{book.version}: "
+                f"{', '.join(known) or 'none'}")}])
+        return book, rubric.load_variant_space(assignment.lesson, version)
     space = rubric.variant_space_for(book) if isinstance(book, rubric.Rubric) else None
     if space is None:
         raise Invalid("no variant space", [{"field": "assignment", "rule": (
@@ -156,12 +173,25 @@ def _space_for(session: Session, assignment: Assignment):
     return book, space
 
 
-def generate(*, session: Session, assignment: Assignment, user: User, seed: int, k: int = K_DEFAULT) -> VariantPool:
-    """Draw and store a pool of `k` variants for `assignment` from `seed` (deterministic: rubric.draw_pool), each
-    'drawn' until `measure` sends its runs; commits. Instructors of the course only; refused once the assignment has
-    opened, while it has a pool already (one pool per assignment: its variants may be some student's), for a
-    rubric version without a variant space, past k_max() (422), and while the instructor or the course has as many
-    pools measuring as the settings allow (429: _refuse_past_measuring_caps)."""
+def space_versions(*, session: Session, assignment: Assignment) -> list[str]:
+    """The variant space versions a new pool of `assignment` may draw from (reviewed for the course's rubric version),
+    oldest first; the last is the default."""
+    book = course_rubric(session, assignment.course_id, assignment.lesson)
+    return [v for v in rubric.variants.variant_space_versions(assignment.lesson)
+            if rubric.load_variant_space(assignment.lesson, v).grading_rubric == str(book.version)]
+
+
+def generate(*, session: Session, assignment: Assignment, user: User, seed: int, k: int = K_DEFAULT,
+             budget: int | None = None, minimum: int | None = None, space_version: str | None = None) -> VariantPool:
+    """Store a pool that keeps `k` variants of `assignment` (issue 47: K means kept): the first `k` drawn from `seed`
+    (deterministic: rubric.draw_pool), each 'drawn' until `measure` sends its runs, and drawn further as variants are
+    dropped (grader.core.variants.continue_pool) until K are kept or `budget` variants were drawn (default
+    BUDGET_FACTOR x K); students get one once `minimum` are kept (default: once the pool is ready). The space is the
+    latest reviewed for the course's rubric version, or `space_version` (one reviewed for it). Commits.
+    Instructors of the course only; refused once the assignment has opened, while it has a pool already (one pool per
+    assignment: its variants may be some student's), for a rubric version without a variant space, past k_max(), a
+    budget outside K..BUDGET_FACTOR_MAX x K or a minimum outside 1..K (422), and while the instructor or the course has
+    as many pools measuring as the settings allow (429: _refuse_past_measuring_caps)."""
     access.require_course_instructor(user, assignment.course_id, action="generate a variant pool",
                                      thing="assignment")
     rules = []
@@ -170,6 +200,11 @@ def generate(*, session: Session, assignment: Assignment, user: User, seed: int,
             " (this service's limit, variant_pool_k_max)" if k_max() < K_MAX else "")})
     if not 0 <= seed < 2**31:
         rules.append({"field": "seed", "rule": "a whole number from 0 to 2147483647"})
+    if budget is not None and not k <= budget <= BUDGET_FACTOR_MAX * k:
+        rules.append({"field": "budget", "rule": f"between K ({k}) and {BUDGET_FACTOR_MAX} x K ({BUDGET_FACTOR_MAX * k}) "
+                                                 "variants drawn"})
+    if minimum is not None and not 1 <= minimum <= k:
+        rules.append({"field": "minimum", "rule": f"between 1 and K ({k}) variants kept before students get one"})
     if rules:
         raise Invalid("invalid pool", rules)
     if utcnow() >= assignment.open_at:
@@ -187,7 +222,7 @@ def generate(*, session: Session, assignment: Assignment, user: User, seed: int,
             + "); an assignment keeps one pool")}],
                        reason="pool_exists", facts={"assignment": assignment.title, "seed": existing.seed,
                                                     "k": existing.k, "students": taken})
-    book, space = _space_for(session, assignment)
+    book, space = _space_for(session, assignment, space_version)
     _refuse_past_measuring_caps(session, assignment.course_id, user)
     try:
         drawn = rubric.draw_pool(space, seed=seed, k=k)
@@ -195,6 +230,7 @@ def generate(*, session: Session, assignment: Assignment, user: User, seed: int,
         raise Invalid("the variant space cannot yield this pool", [{"field": "k", "rule": str(exc)}]) from None
     pool = VariantPool(assignment_id=assignment.id, lesson=assignment.lesson, space_version=space.version,
                        space_hash=space.content_hash, rubric_version=str(book.version), seed=seed, k=k,
+                       draw_budget=budget if budget is not None else BUDGET_FACTOR * k, minimum=minimum,
                        state=PoolState.MEASURING, rejected=[r.model_dump(mode="json") for r in drawn.rejected],
                        created_by_id=user.id)
     session.add(pool)
@@ -286,35 +322,38 @@ def measure(*, session: Session, pool: VariantPool, user: User, sender: Sender) 
 
 
 def generate_and_measure(*, session: Session, assignment: Assignment, user: User, seed: int, k: int = K_DEFAULT,
+                         budget: int | None = None, minimum: int | None = None, space_version: str | None = None,
                          sender: Sender) -> VariantPool:
     """`generate` then `measure`: what the API and the command line do."""
-    pool = generate(session=session, assignment=assignment, user=user, seed=seed, k=k)
+    pool = generate(session=session, assignment=assignment, user=user, seed=seed, k=k, budget=budget, minimum=minimum,
+                    space_version=space_version)
     measure(session=session, pool=pool, user=user, sender=sender)
     session.refresh(pool)
     return pool
 
 
-def top_up(*, session: Session, assignment: Assignment, user: User, sender: Sender) -> list[PoolVariant]:
-    """Draw the pool further until it may keep K variants: the next draws of the same seed (draws are sequential, so
-    the pool stays reproducible), one per variant dropped, measured like the first. Instructors of the course only,
-    once the pool is ready with fewer than K kept, before the assignment opens and while no student has a variant,
-    within the caps on pools measuring at once (as `generate`). Returns the variants added."""
+def top_up(*, session: Session, assignment: Assignment, user: User, sender: Sender,
+           more: int | None = None) -> list[PoolVariant]:
+    """Draw the pool further from its seed (the seed's next draws: the pool stays reproducible) and measure the new
+    variants like the first. At any time (issue 47): students who have a variant keep it, and new students are spread
+    over every kept variant (grader.services.setup.student_variants). With `more`, K grows by `more` (and the draw
+    budget by BUDGET_FACTOR x `more`); without, a ready pool that kept fewer than K (its budget spent) draws the
+    K - kept it lacks, its budget raised by as many. Instructors of the course only, within the caps on pools measuring
+    at once (as `generate`); without `more`, refused while it is still measuring or keeps K already. Returns the
+    variants added."""
     access.require_course_instructor(user, assignment.course_id, action="draw a variant pool further",
                                      thing="assignment")
     pool = pool_of(session, assignment)
     if pool is None:
         raise NotFound(f"assignment {assignment.id} has no variant pool")
+    if more is not None and not 1 <= more <= k_max():
+        raise Invalid("invalid top-up", [{"field": "more", "rule": f"between 1 and {k_max()} variants more to keep"}])
     kept = sum(v.state == VariantState.KEPT for v in pool.variants)
     rule = why = None  # `why` names the rule for a page to word it (grader/templates/setup/assignments.html)
-    if pool.state != PoolState.READY:
+    if more is None and pool.state != PoolState.READY:
         rule, why = "its variants are still being measured: top up once every one is kept or dropped", "measuring"
-    elif kept >= pool.k:
+    elif more is None and kept >= pool.k:
         rule, why = f"it keeps {kept} of the {pool.k} variants asked for already", "full"
-    elif utcnow() >= assignment.open_at:
-        rule, why = "the assignment has opened: students already working on it would change lab", "opened"
-    elif session.scalar(select(func.count()).select_from(StudentVariant)
-                        .where(StudentVariant.assignment_id == assignment.id)):
-        rule, why = "students have variants of it already", "assigned"
     if rule is not None:
         raise Conflict("the pool is not drawn further", [{"field": "assignment", "rule": rule}],
                        reason=f"top_up_{why}", facts={"assignment": assignment.title, "kept": kept, "k": pool.k,
@@ -322,14 +361,23 @@ def top_up(*, session: Session, assignment: Assignment, user: User, sender: Send
     _refuse_past_measuring_caps(session, assignment.course_id, user)
     space = rubric.load_variant_space(pool.lesson, pool.space_version)
     drawn_so_far = len(pool.variants)
+    wanted = more if more is not None else pool.k - kept
     try:
-        drawn = rubric.draw_pool(space, seed=pool.seed, k=drawn_so_far + pool.k - kept)
+        drawn = rubric.draw_pool(space, seed=pool.seed, k=drawn_so_far + wanted)
     except rubric.VariantPoolError as exc:
         raise Invalid("the variant space cannot yield more variants", [{"field": "k", "rule": str(exc)}]) from None
     added = [PoolVariant(pool_id=pool.id, name=v.id, position=drawn_so_far + n, parameters=v.parameters,
                          digest=v.digest, state=VariantState.DRAWN)
              for n, v in enumerate(drawn.variants[drawn_so_far:], start=1)]
     session.add_all(added)
+    budget = draw_budget(pool)
+    if more is not None:
+        if pool.minimum is None and serves_students(pool):
+            pool.minimum = kept  # students kept being served while the new variants are measured
+        pool.k += more
+        pool.draw_budget = max(budget, drawn_so_far) + BUDGET_FACTOR * more
+    else:
+        pool.draw_budget = max(budget, drawn_so_far) + wanted
     pool.state, pool.ready_at = PoolState.MEASURING, None
     session.commit()
     session.refresh(pool)
@@ -355,7 +403,8 @@ def pool_view(*, session: Session, assignment: Assignment, user: User) -> PoolVi
     runs = _runs_of(session, [v.submission_id for v in pool.variants if v.submission_id is not None])
     return PoolView(assignment_id=assignment.id, lesson=pool.lesson, space_version=pool.space_version,
                     space_hash=pool.space_hash, rubric_version=pool.rubric_version, seed=pool.seed, k=pool.k,
-                    state=pool.state, kept=sum(r.state == VariantState.KEPT for r in rows),
+                    draw_budget=draw_budget(pool), minimum=pool.minimum, drawn=len(pool.variants),
+                    outcome=outcome(pool), serving=serves_students(pool), state=pool.state, kept=sum(r.state == VariantState.KEPT for r in rows),
                     dropped=sum(r.state == VariantState.DROPPED for r in rows), created_by=creator.name,
                     created_at=pool.created_at, ready_at=pool.ready_at,
                     rejected_draws=dict(Counter(reason.split(":")[0] for r in pool.rejected for reason in r["reasons"])),

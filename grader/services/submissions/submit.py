@@ -13,10 +13,10 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from grader.core import grading, lifecycle
-from grader.core.audit import spec_key
 from grader.core.rubrics import course_rubric
 from grader.core.states import Backend, CaseRunState
-from grader.core.models import Assignment, CaseRun, Course, Event, Submission, User, utcnow
+from grader.core.models import Assignment, CaseRun, Course, Submission, User, utcnow
+from grader.core.submissions import create_submission
 from grader.services.setup import assignments, student_variants
 from grader.core.variants import as_variant
 from grader.services.identity import quotas
@@ -28,28 +28,6 @@ from grader.services.identity import access
 from rubric import describe_errors, with_backend
 
 log = logging.getLogger(__name__)
-
-
-def create_submission(
-    *, session: Session, student: User, lesson: str, sheet: dict[str, Any], specs: list, force_rerun: bool
-) -> Submission:
-    """The submission and one queued CaseRun per spec, added to the session (commit before enqueueing)."""
-    submission = Submission(
-        course_id=student.course_id, student_id=student.id, lesson=lesson, sheet=sheet, force_rerun=force_rerun
-    )
-    session.add(submission)
-    session.flush()
-    session.add(Event(submission_id=submission.id, state="submitted", detail=f"{len(specs)} case runs"))
-    runs = []
-    for spec in specs:
-        dumped = spec.model_dump(mode="json", exclude_computed_fields=True)
-        runs.append(CaseRun(submission_id=submission.id, name=spec.name, kind=spec.kind, backend=spec.backend,
-                            precision=spec.precision, spec=dumped, spec_key=spec_key(dumped)))
-    session.add_all(runs)
-    session.flush()  # one INSERT for every run (their ids for the events), not one round trip per run
-    session.add_all([Event(submission_id=submission.id, case_run_id=run.id, state=CaseRunState.QUEUED,
-                           detail=f"queue {run.backend}") for run in runs])
-    return submission
 
 
 def visible_submissions(*, session: Session, user: User, course: Course | None = None):

@@ -120,3 +120,41 @@ def test_only_the_courses_instructors_read_or_generate_a_pool(api, who):
         assert response.status_code == 404 and "v7-1" not in response.text, (who, path)
     assert page(api, aid, who=who).status_code == 404
     assert len(api.sent) == sent
+
+
+def test_the_form_asks_for_k_kept_a_budget_a_minimum_and_a_space_and_the_pool_says_what_students_see(api):
+    """Issue 47: K is kept, within a stated draw budget; students wait for the minimum, and the page says what they
+    see meanwhile; variants can be added to the pool at any time."""
+    from grader.core.db import new_session
+    from grader.core.models import VariantPool
+
+    aid = pool_assignment(api)
+    text = page(api, aid).text
+    assert 'name="budget"' in text and 'name="minimum"' in text
+    assert '<option value="1">v1</option><option value="2" selected>v2</option>' in text  # the latest by default
+    bad = page_post(api, f"/assignments/{aid}/variants", {"seed": "7", "k": "2", "budget": "1", "minimum": "3"})
+    assert bad.status_code == 422 and api.sent == []
+    assert "Draw budget: a whole number from 2 to 8" in bad.text
+    assert "Kept before students get one: a whole number from 1 to 2" in bad.text
+
+    posted = page_post(api, f"/assignments/{aid}/variants",
+                       {"seed": "7", "k": "2", "budget": "3", "minimum": "1", "space_version": "1"})
+    assert posted.status_code == 303, posted.text
+    with new_session() as session:
+        pool = session.scalar(select(VariantPool).where(VariantPool.assignment_id == aid))
+        assert (pool.space_version, pool.k, pool.draw_budget, pool.minimum) == ("1", 2, 3, 1)
+    text = page(api, aid).text
+    assert "Drawing until 2 are kept: 2 of at most 3 variants drawn so far." in text
+    assert "Until 1 are kept, students are told on the course page that their lab is being prepared" in text
+    decide_all(aid, {})
+    text = page(api, aid).text
+    assert "Kept 2 of the 2 asked for, in 2 variants drawn." in text
+    assert "Students get a variant at their first visit." in text
+
+    refused = page_post(api, f"/assignments/{aid}/variants/top-up", {"more": "0"})
+    assert refused.status_code == 422 and "Variants more to keep: a whole number from 1 to 64" in refused.text
+    added = page_post(api, f"/assignments/{aid}/variants/top-up", {"more": "2"})
+    assert added.status_code == 303, added.text
+    text = page(api, aid).text
+    assert "Drawing until 4 are kept: 4 of at most 7 variants drawn so far." in text
+    assert "Students get a variant at their first visit." in text  # the two kept serve while the new are measured

@@ -8,7 +8,7 @@ from fastapi import APIRouter, status
 from grader import dispatch
 from grader.api.responses import errors
 from grader.api.routes.setup.assignments import InstructorsAssignment, ReadableAssignment
-from grader.api.schemas import VariantPoolCreate
+from grader.api.schemas import VariantPoolCreate, VariantPoolTopUp
 from grader.services.setup import variants as logic
 from grader.services.setup.variants import FlagRow, PoolView
 from grader.web.deps import CurrentUser, SessionDep, StaffUser
@@ -21,19 +21,24 @@ router = APIRouter(tags=["assignments"], responses=errors(401, 404, 422))
                               _429="The instructor or the course has as many pools measuring as the service allows"))
 def generate_pool(assignment: InstructorsAssignment, body: VariantPoolCreate, session: SessionDep, user: CurrentUser):
     """Draw K variants from the seed and queue every variant's lesson runs (an instructor of the course, before the
-    assignment opens); each variant is kept or dropped, with its reason, once its lab check has run."""
+    assignment opens); each is kept or dropped, with its reason, once its lab check has run, and the pool draws further
+    until K are kept or its draw budget is spent (its `outcome` says which)."""
     pool = logic.generate_and_measure(session=session, assignment=assignment, user=user, seed=body.seed, k=body.k,
+                                      budget=body.budget, minimum=body.minimum, space_version=body.space_version,
                                       sender=dispatch)
     return logic.pool_view(session=session, assignment=pool.assignment, user=user)
 
 
 @router.post("/assignments/{assignment_id}/variants/top-up", response_model=PoolView,
-             responses=errors(403, 409, 429, _409="Still measuring, K kept already, opened, or students have variants",
+             responses=errors(403, 409, 429, _409="Without `more`: still measuring, or K kept already",
                               _429="The instructor or the course has as many pools measuring as the service allows"))
-def top_up_pool(assignment: InstructorsAssignment, session: SessionDep, user: CurrentUser):
-    """Draw the pool further from its seed, one variant per dropped one, and measure them (an instructor of the
-    course, before the assignment opens); the pool is drawn reproducibly as the seed's next draws."""
-    logic.top_up(session=session, assignment=assignment, user=user, sender=dispatch)
+def top_up_pool(assignment: InstructorsAssignment, session: SessionDep, user: CurrentUser,
+                body: VariantPoolTopUp | None = None):
+    """Draw the pool further from its seed and measure the new variants, at any time (an instructor of the course):
+    `more` variants more to keep, or the K - kept a ready pool lacks. Students keep their variant; new students are
+    spread over every kept one."""
+    logic.top_up(session=session, assignment=assignment, user=user, sender=dispatch,
+                 more=body.more if body is not None else None)
     return logic.pool_view(session=session, assignment=assignment, user=user)
 
 
