@@ -76,14 +76,14 @@ def test_a_bad_notebook_is_refused_whole_and_a_good_one_submitted(api, aid):
     with new_session() as session:
         before = (session.scalar(select(func.count()).select_from(Submission)),
                   session.scalar(select(func.count()).select_from(Draft)))
-    refused = api.client.post("/v1/submissions/notebook", headers=api.as_("alice"), data={"assignment_id": aid},
+    refused = api.client.post("/v1/notebooks", headers=api.as_("alice"), data={"assignment_id": aid},
                               files={"file": ("sheet.ipynb", as_bytes(nb), "application/x-ipynb+json")})
     assert refused.status_code == 422, refused.text
     assert "both hold answer:A2: keep one" in refused.json()["errors"][0]["rule"]
     with new_session() as session:
         assert (session.scalar(select(func.count()).select_from(Submission)),
                 session.scalar(select(func.count()).select_from(Draft))) == before
-    taken = api.client.post("/v1/submissions/notebook", headers=api.as_("alice"), data={"assignment_id": aid},
+    taken = api.client.post("/v1/notebooks", headers=api.as_("alice"), data={"assignment_id": aid},
                             files={"file": ("sheet.ipynb", as_bytes(filled(reference_sheet())), "application/json")})
     assert taken.status_code == 202, taken.text
     assert (taken.json()["assignment_id"], taken.json()["attempt"]) == (aid, 1)

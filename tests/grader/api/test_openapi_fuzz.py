@@ -161,6 +161,10 @@ VALID_GETS = [
     ("/v1/audit/entries", "prof", {}, {"lesson": "L03"}),
     ("/v1/audit/entries.csv", "prof", {}, {}),
     ("/v1/audit/entries/{entry_id}", "prof", {}, {}),
+    # the notebook client's (issue 48)
+    ("/v1/sheets", "alice", {}, {"language": "zh"}),
+    ("/v1/assignments/{assignment_id}/sheet", "alice", {}, {}),
+    ("/v1/submissions/{submission_id}/progress", "alice", {}, {}),
 ]
 # Writes, in this order (the release and the extension name the world's assignment).
 VALID_WRITES = [
@@ -174,6 +178,8 @@ VALID_WRITES = [
     ("PATCH", "/v1/courses/{course}", "prof", {"course": "l03"}, {"timezone": "Europe/Berlin"}),
     ("POST", "/v1/courses/{course}/roster", "prof", {"course": "l03"},
      {"csv": "student_id,name,email\ncarol,Carol C,carol@example.org\n"}),
+    ("POST", "/v1/assignments/{assignment_id}/sheet/check", "alice", {}, {"sheet": reference_sheet()}),
+    ("PUT", "/v1/assignments/{assignment_id}/sheet/draft", "alice", {}, {"sheet": reference_sheet()}),
 ]
 
 

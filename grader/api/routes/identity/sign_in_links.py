@@ -22,7 +22,7 @@ class LinkToken(BaseModel):
     expires_in_days: int
 
 
-@router.post("/sign-in-links/{secret}/token", response_model=LinkToken, responses=errors(404, 429, _404=(
+@router.post("/sign-in-links/{secret}/token", response_model=LinkToken, responses=errors(404, 422, 429, _404=(
     "An unknown link, or one used, expired or replaced; the detail says which")))
 def token_for_link(request: Request, secret: str = Path(min_length=1, max_length=128), *, session: SessionDep):
     """Use a student's sign-in link (once, as pressing its page's button does) and get an API token for the

@@ -10,20 +10,23 @@ from fastapi import APIRouter, File, Form, UploadFile, status
 from grader import dispatch
 from grader.api.responses import errors
 from grader.api.views import submission_public
-from grader.core.schemas import SubmissionPublic
+from grader.core.schemas import ErrorBody, SubmissionPublic
 from grader.services.identity.access import MAX_ID
 from grader.services.submissions import notebooks
 from grader.web.deps import CurrentUser, SessionDep
 
-router = APIRouter(prefix="/submissions", tags=["submissions"], responses=errors(401))
+# Not under /submissions: `/submissions/notebook` would also name a submission for GET /submissions/{submission_id}.
+# A multipart body the form parser cannot read is refused before the handler (Starlette's 400).
+MALFORMED = {400: {"model": ErrorBody, "description": "A multipart body that cannot be parsed"}}
+router = APIRouter(prefix="/notebooks", tags=["submissions"], responses=errors(401))
 
 
-@router.post("/notebook", status_code=status.HTTP_202_ACCEPTED, response_model=SubmissionPublic,
+@router.post("", status_code=status.HTTP_202_ACCEPTED, response_model=SubmissionPublic,
              responses=errors(403, 409, 413, 422, 429, _409=(
                  "Refused by its assignment: not open yet, past its hard close, or no attempt left"), _422=(
                  "Not a notebook this service reads (not JSON, not nbformat 4, outputs too large, no answer cell, two "
                  "cells for one item, a cell that is not one literal assignment), or its sheet breaks a rule; each "
-                 "error names the cell")))
+                 "error names the cell")) | MALFORMED)
 def submit_notebook(session: SessionDep, user: CurrentUser,
                     file: Annotated[UploadFile, File(description="The .ipynb file, answer cells tagged answer:ID")],
                     assignment_id: Annotated[int | None, Form(ge=1, le=MAX_ID)] = None):

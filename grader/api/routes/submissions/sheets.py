@@ -67,7 +67,7 @@ def _assignment(session, user, assignment_id: int) -> Assignment:
     return assignments.assignment_of(session=session, user=user, assignment_id=assignment_id)
 
 
-@router.get("/sheets", response_model=list[AssignmentSheetLine])
+@router.get("/sheets", response_model=list[AssignmentSheetLine], responses=errors(422))
 def list_sheets(session: SessionDep, user: CurrentUser, language: Language = "en"):
     """The caller's assignments with their phase, due date, attempts and own lab (a student's course page, as data)."""
     lines = course_page.student_course(session=session, student=user, locale=language)
@@ -77,7 +77,7 @@ def list_sheets(session: SessionDep, user: CurrentUser, language: Language = "en
                                 lab=line.lab.summary if line.lab is not None else None) for line in lines]
 
 
-@router.get("/assignments/{assignment_id}/sheet", response_model=SheetPublic, responses=errors(404, 409))
+@router.get("/assignments/{assignment_id}/sheet", response_model=SheetPublic, responses=errors(404, 409, 422))
 def get_sheet(assignment_id: RowId, session: SessionDep, user: CurrentUser, language: Language = "en"):
     """The sheet page's facts: items and their fields, config roles and rules, the caller's own lab, the draft the
     page keeps, and what a submission now would be (409 while the caller's lab is being prepared)."""
@@ -108,7 +108,7 @@ def save_draft(assignment_id: RowId, body: SheetBody, session: SessionDep, user:
     return DraftPublic(saved_at=draft.updated_at.isoformat())
 
 
-@router.get("/submissions/{submission_id}/progress", response_model=dict[str, Any], responses=errors(404))
+@router.get("/submissions/{submission_id}/progress", response_model=dict[str, Any], responses=errors(404, 422))
 def submission_progress(submission_id: RowId, session: SessionDep, user: CurrentUser):
     """Each case run's state and place in its queue, what runs ahead, and estimates: the progress page's data."""
     return progress.as_json(progress.submission_progress(session=session, user=user, submission_id=submission_id))
