@@ -22,26 +22,47 @@ class CopyEvidence(BaseModel):
     items: list[str]
     own_expected: dict[str, str]
     other_expected: dict[str, str]
+    # How many measured items the two variants expect differently: the only ones that can tell them apart (issue 47).
+    # 0 when unknown (evidence stored before it was counted).
+    differing: int = 0
 
     def describe(self) -> str:
         shown = "; ".join(f"{i}: own {self.own_expected[i]}, {self.variant} {self.other_expected[i]}" for i in self.items)
-        return f"answers fit variant {self.variant} rather than the student's own on {len(self.items)} items ({shown})"
+        of = f" of the {self.differing} where the two variants differ" if self.differing else ""
+        return (f"answers fit variant {self.variant} rather than the student's own on {len(self.items)} items{of} "
+                f"({shown})")
+
+
+def differing_items(own: GradeReport, other: GradeReport) -> list[str]:
+    """The items measured on both variants (graded, not 'not_measured') whose expected answers differ: the only ones
+    on which a sheet can fit one variant and not the other."""
+    mine = {i.id: i for i in own.items}
+    return [i.id for i in other.items if i.id in mine and i.expected != mine[i.id].expected
+            and "not_measured" not in (i.verdict, mine[i.id].verdict)]
+
+
+def indistinct_variants(own: GradeReport, others: Mapping[str, GradeReport]) -> list[str]:
+    """The other variants no measured item tells apart from the student's own (they expect alike everywhere): copying
+    between them cannot be seen, and the instructor is told so rather than shown no evidence."""
+    return sorted(v for v, report in others.items() if v != own.variant and not differing_items(own, report))
 
 
 def copy_evidence(own: GradeReport, others: Mapping[str, GradeReport], *, min_items: int = 2) -> list[CopyEvidence]:
     """Per other variant: the items credited there but not on the student's own variant, where the two variants
-    expect different answers (an item both expect alike proves nothing). Listed only from `min_items` such items,
-    most items first; one coincidence is not evidence."""
+    expect different answers (an item both expect alike proves nothing). Listed from `min_items` such items, or, for
+    two variants that differ on fewer items than that (they share most answers, issue 47), when the sheet fits the
+    other variant on every item where they differ; most items first. One coincidence among many is not evidence."""
     mine = {i.id: i for i in own.items}
     found = []
     for variant, report in others.items():
         if variant == own.variant:
             continue
+        differing = differing_items(own, report)
         items = [i.id for i in report.items
-                 if i.id in mine and i.verdict == "credit" and mine[i.id].verdict == "no_credit"
-                 and i.expected != mine[i.id].expected]
-        if len(items) >= min_items:
+                 if i.id in differing and i.verdict == "credit" and mine[i.id].verdict == "no_credit"]
+        if len(items) >= min_items or (items and len(items) == len(differing) < min_items):
             found.append(CopyEvidence(variant=variant, items=items,
                                       own_expected={i: mine[i].expected for i in items},
-                                      other_expected={i.id: i.expected for i in report.items if i.id in items}))
+                                      other_expected={i.id: i.expected for i in report.items if i.id in items},
+                                      differing=len(differing)))
     return sorted(found, key=lambda e: (-len(e.items), e.variant))

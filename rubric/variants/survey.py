@@ -33,6 +33,7 @@ class Outcome(RubricModel):
     parameters: dict[str, Number]
     kept: bool
     failed: list[str] = []
+    evidence: dict[str, str] = {}  # each failed condition's evidence, as the lab check wrote it
     seconds: float | None = None
 
 
@@ -79,16 +80,41 @@ def quantities(parameters: Mapping[str, Number], varying: Iterable[str]) -> dict
     return out
 
 
+def checked_quantities(choices: Mapping[str, Iterable[Number]], case_names: Iterable[str]) -> set[str]:
+    """The varying parameters any of whose values changes one of `case_names` (the lab check's cases) from the
+    lesson's, and the internal steps of those contact cases among them."""
+    from .apply import variant_cases  # here: survey is imported without building cases otherwise
+
+    names = list(case_names)
+    shipped = variant_cases({})
+    out = set()
+    for name, values in choices.items():
+        for value in values:
+            try:
+                cases = variant_cases({name: value})
+            except ValueError:  # a value building no valid case on its own still varies what the check runs
+                out.add(name)
+                break
+            if any(cases[c] != shipped[c] for c in names):
+                out.add(name)
+                break
+    return out | {step for step in STEPS if step.split("_")[0] in names}
+
+
 def _rule(quantity: str, values: list[Number]) -> str:
     dt, substeps = STEPS.get(quantity, (None, None))
     expr = f"{dt} / {substeps}" if dt else quantity
     return " or ".join(f"close({expr}, {_shown(v)})" for v in sorted(values))
 
 
-def survey(outcomes: list[Outcome], varying: Iterable[str]) -> Survey:
+def survey(outcomes: list[Outcome], varying: Iterable[str], *, min_support: int = 2,
+           checked: Iterable[str] | None = None) -> Survey:
     """Tally `outcomes` by lab condition and by the value of each varying parameter and internal step, and propose
-    for each quantity the rule keeping only the values some kept variant has, where that removes at least one drop and
-    loses no kept variant (best first: most drops removed, then fewest values kept)."""
+    for each quantity the rule that excludes its values measured at least `min_support` times and never kept (a value
+    seen once says little), where that loses no kept variant (best first: most drops removed, then shortest rule).
+    When every value never kept is excluded so, the rule lists the values kept instead. With `checked` (the quantities
+    that change a case the lab check runs: checked_quantities), only those are proposed: a drop cannot come from a
+    parameter the check never ran."""
     varying = sorted(varying)
     counts: dict[str, dict[str, Counter]] = {}
     seen: dict[str, dict[str, Number]] = {}
@@ -101,14 +127,21 @@ def survey(outcomes: list[Outcome], varying: Iterable[str]) -> Survey:
     kept = sum(o.kept for o in outcomes)
     proposals = []
     for quantity, tallies in by_value.items():
-        keep = [seen[quantity][v] for v, t in tallies.items() if t.kept]
-        removes = sum(t.dropped for t in tallies.values() if not t.kept)
-        if not keep or not removes or len(keep) == len(tallies):
+        if checked is not None and quantity not in set(checked):
             continue
-        remaining = sum(t.measured for t in tallies.values() if t.kept)
-        proposals.append(Proposal(name=f"{quantity}_as_measured", rule=_rule(quantity, keep), removes=removes,
+        keep = [seen[quantity][v] for v, t in tallies.items() if t.kept]
+        excluded = [v for v, t in tallies.items() if not t.kept and t.measured >= min_support]
+        if not keep or not excluded:
+            continue
+        removes = sum(tallies[v].dropped for v in excluded)
+        if len(keep) + len(excluded) == len(tallies):
+            rule = _rule(quantity, keep)
+        else:
+            rule = " and ".join(f"not {_rule(quantity, [seen[quantity][v]])}" for v in excluded)
+        remaining = sum(t.measured for v, t in tallies.items() if v not in excluded)
+        proposals.append(Proposal(name=f"{quantity}_as_measured", rule=rule, removes=removes,
                                   loses=0, kept_fraction_after=kept / remaining))
-    proposals.sort(key=lambda p: (-p.removes, p.rule.count(" or "), p.name))
+    proposals.sort(key=lambda p: (-p.removes, len(p.rule), p.name))
     drops = Counter(c for o in outcomes if not o.kept for c in (o.failed or ["unknown"]))
     return Survey(measured=len(outcomes), kept=kept, drops_by_condition=dict(drops.most_common()),
                   by_value={q: dict(sorted(t.items(), key=lambda kv: seen[q][kv[0]])) for q, t in sorted(by_value.items())},

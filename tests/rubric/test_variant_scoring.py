@@ -220,3 +220,34 @@ def test_answers_that_fit_another_variant_are_shown_with_the_items_and_the_varia
     # An honest sheet fits its own variant: no evidence.
     honest, _ = graded(variant_sheet(), VARIANT)
     assert copy_evidence(honest, {"v7-4": on_own}) == []
+
+
+def test_copying_between_variants_that_share_most_answers_is_counted_over_the_items_where_they_differ():
+    """Issue 47: two variants may expect alike on all but one item; a sheet fitting the other one there is all the
+    evidence there can be, so it is shown (saying over how many items), and a pair nothing tells apart is named."""
+    from rubric.copying import copy_evidence, differing_items, indistinct_variants
+
+    other = Variant(id="v7-4", space_version="1", parameters=VARIANT.parameters | {
+        "table_friction": 0.5, "exercise_table_friction": 0.3, "coarse_dt": 0.02, "more_substeps": 4,
+        "base_substeps": 2, "fine_dt": 0.01})
+    copied = variant_sheet("walt")
+    on_own, _ = graded(copied, other)
+    on_hers, _ = graded(copied, VARIANT)
+    own = on_own.model_copy(update={"variant": "v7-4"})
+    # Keep every item both expect alike and one they differ on (C5): the two variants share most answers.
+    differ = set(differing_items(own, on_hers))
+    assert "C5" in differ and len(differ) >= 2
+    keep = [i for i in own.items if i.id not in differ or i.id == "C5"]
+    near_own = own.model_copy(update={"items": keep})
+    near_hers = on_hers.model_copy(update={"items": [i for i in on_hers.items if i.id in {k.id for k in keep}]})
+    assert differing_items(near_own, near_hers) == ["C5"]
+    (found,) = copy_evidence(near_own, {"v7-3": near_hers})
+    assert (found.variant, found.items, found.differing) == ("v7-3", ["C5"], 1)
+    assert "on 1 items of the 1 where the two variants differ" in found.describe()
+    # With the full reports, the rule of two items or more still holds and the count is given.
+    (full,) = copy_evidence(own, {"v7-3": on_hers})
+    assert full.items == ["C1", "C5", "H1"] and full.differing == len(differ)
+    # A variant expecting alike on every measured item cannot be told apart: named, never shown as no evidence.
+    alike = near_own.model_copy(update={"variant": "v7-9"})
+    assert indistinct_variants(near_own, {"v7-9": alike, "v7-3": near_hers}) == ["v7-9"]
+    assert copy_evidence(near_own, {"v7-9": alike}) == []
