@@ -203,17 +203,21 @@ def test_a_pool_measures_each_variants_lesson_runs_once_for_all_its_students():
         assert needed == specs
 
 
-def test_answers_that_fit_another_variant_are_shown_with_the_items_and_the_variant():
-    from rubric.copying import copy_evidence
-
+def walt_on_both():
+    """Walt is on v7-4 but hands in Vera's sheet (her v7-3 numbers): his sheet graded on his own variant and, for the
+    evidence, on hers (the reports of v7-4 and v7-3)."""
     other = Variant(id="v7-4", space_version="1", parameters=VARIANT.parameters | {
         "table_friction": 0.5, "exercise_table_friction": 0.3, "coarse_dt": 0.02, "more_substeps": 4,
         "base_substeps": 2, "fine_dt": 0.01})
-    # Walt is on v7-4 but hands in Vera's sheet (her v7-3 numbers); graded on his own variant and, for the evidence,
-    # on hers. Nothing in the evidence changes his grade.
     copied = variant_sheet("walt")
-    on_own, _ = graded(copied, other)
-    on_hers, _ = graded(copied, VARIANT)
+    return graded(copied, other)[0], graded(copied, VARIANT)[0]
+
+
+def test_answers_that_fit_another_variant_are_shown_with_the_items_and_the_variant():
+    from rubric.copying import copy_evidence
+
+    # Nothing in the evidence changes his grade.
+    on_own, on_hers = walt_on_both()
     found = copy_evidence(on_own.model_copy(update={"variant": "v7-4"}), {"v7-3": on_hers, "v7-4": on_own})
     assert [(e.variant, e.items) for e in found] == [("v7-3", ["C1", "C5", "H1"])]
     assert "C5: own 0.5, v7-3 0.45" in found[0].describe()
@@ -227,12 +231,7 @@ def test_copying_between_variants_that_share_most_answers_is_counted_over_the_it
     evidence there can be, so it is shown (saying over how many items), and a pair nothing tells apart is named."""
     from rubric.copying import copy_evidence, differing_items, indistinct_variants
 
-    other = Variant(id="v7-4", space_version="1", parameters=VARIANT.parameters | {
-        "table_friction": 0.5, "exercise_table_friction": 0.3, "coarse_dt": 0.02, "more_substeps": 4,
-        "base_substeps": 2, "fine_dt": 0.01})
-    copied = variant_sheet("walt")
-    on_own, _ = graded(copied, other)
-    on_hers, _ = graded(copied, VARIANT)
+    on_own, on_hers = walt_on_both()
     own = on_own.model_copy(update={"variant": "v7-4"})
     # Keep every item both expect alike and one they differ on (C5): the two variants share most answers.
     differ = set(differing_items(own, on_hers))
