@@ -220,7 +220,12 @@ class Submission:
 
     def report(self) -> Report:
         """The report: total, the lab check line, each item's verdict and evidence, the charts, a link to the page."""
-        grade = self.grader.call("GET", f"/submissions/{self.id}/grade")
+        try:
+            grade = self.grader.call("GET", f"/submissions/{self.id}/grade")
+        except GraderError as refused:  # 409: not graded yet, or every score withheld until the due date or release
+            if refused.status != 409:
+                raise
+            return Withheld(self, refused.detail)
         series = self.grader.call("GET", f"/submissions/{self.id}/series")
         return Report(self, grade, series)
 
@@ -255,6 +260,21 @@ class Report:
         lines += [f"  {i['id']}: {i['verdict']} {i['score']}" for i in self.grade["items"]]
         lines.append(self.submission.url)
         return "\n".join(lines)
+
+
+class Withheld:
+    """A report not shown yet: why (not graded yet, or its assignment withholds every score until a date or a
+    release), as the report page says it."""
+
+    def __init__(self, submission: Submission, why: str):
+        self.submission, self.why = submission, why
+
+    def _repr_html_(self) -> str:
+        return (f'<p class="gradernb">Submission {self.submission.id}: {escape(self.why)}. '
+                f'<a href="{escape(self.submission.url)}" target="_blank">The report page</a></p>')
+
+    def __repr__(self) -> str:
+        return f"submission {self.submission.id}: {self.why}"
 
 
 def _evidence(evidence: Any) -> str:

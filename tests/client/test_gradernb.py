@@ -75,3 +75,15 @@ def test_setting_a_field_the_item_lacks_is_named():
         sheet.set("B9", lane="low")
     sheet.collect({"A2": {"direction": "increase"}, "B9": {"x": 1}})
     assert sheet.answers == {"A2": {"direction": "increase"}}
+
+
+def test_a_withheld_report_says_why_instead_of_failing():
+    class Refusing:
+        url = "http://grader"
+
+        def call(self, method, path, **_):
+            raise GraderError(409, "grade of submission 7 is withheld: every item is shown from the due date")
+
+    shown = Submission(Refusing(), {"id": 7}).report()
+    assert repr(shown) == "submission 7: grade of submission 7 is withheld: every item is shown from the due date"
+    assert "http://grader/submissions/7" in shown._repr_html_()
