@@ -157,7 +157,9 @@ def report_lines(s: Survey, title: str) -> list[str]:
     for quantity, tallies in s.by_value.items():
         cells = "  ".join(f"{v}: {t.kept}/{t.measured}" for v, t in tallies.items())
         lines.append(f"    {quantity:24s} {cells}")
-    if s.proposals:
+    if s.kept == s.measured:
+        lines.append("  no drops: nothing to propose")
+    elif s.proposals:
         lines.append("  proposed constraints (each loses no kept variant):")
         lines += [f"    {p.name}: {p.rule}  (removes {p.removes} drops; kept fraction after "
                   f"{p.kept_fraction_after:.0%})" for p in s.proposals]
