@@ -11,10 +11,14 @@ STYLE = ("<style>.gradernb td,.gradernb th{text-align:left;vertical-align:top;pa
 
 
 def text(value: Any) -> str:
+    """A value as a reader reads it: floats to 4 significant digits (the evidence's arrays are kept whole by the
+    service), a quantity with its unit."""
     if value is None:
         return "–"
+    if isinstance(value, float):
+        return f"{value:.4g}"
     if isinstance(value, dict) and set(value) == {"value", "unit"}:
-        return f"{value['value']} {value['unit']}"
+        return f"{text(value['value'])} {value['unit']}"
     return str(value)
 
 
