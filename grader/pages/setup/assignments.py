@@ -3,8 +3,8 @@ that apply (their extension, with who granted it), every attempt with its latene
 counted score, and which attempt counts; and its forms: release the withheld items, grant or revoke a student's
 extension (dates typed in the course's zone), each recorded in the course's changes, listed here for this
 assignment. Its per-student lab variants (issue 34): generate and measure a pool from a seed before the assignment
-opens, read each variant's parameters, state and why it was dropped, and draw it further when fewer than K were kept
-(grader.services.setup.variants). For the course's instructors; anyone else gets the 404 page."""
+opens (K kept, a draw budget, a minimum before students get one), read each variant's parameters, state and why it
+was dropped, and add variants at any time (grader.services.setup.variants). For the course's instructors; anyone else gets the 404 page."""
 
 from __future__ import annotations
 

@@ -1,7 +1,8 @@
 """An assignment's pool of per-student lab variants (issue 34): drawn by an instructor from a seed before the
 assignment opens, measured by the workers (each variant's lesson runs as the case runs of one measuring submission,
-reused by content key by every student on it), kept or dropped on its lab check (grader.core.variants.record_check);
-staff read the pool and the copy evidence stored at grading. Which variant a student works on:
+reused by content key by every student on it), kept or dropped on its lab check (grader.core.variants.record_check),
+and drawn further by the worker until K are kept or its draw budget is spent (grader.core.variants.continue_pool,
+issue 47); variants may be added at any time (`top_up`); staff read the pool and the copy evidence stored at grading. Which variant a student works on:
 grader.services.setup.student_variants.
 
 What a pool costs is counted against the instructor and the course (issue 44): K at most settings.variant_pool_k_max,
