@@ -122,6 +122,20 @@ class Sheet:
             sheet["configs"] = self.configs
         return sheet
 
+    def words(self, field: str) -> str:
+        """A field the service names (`sheet.answers.A2.direction`) in the student's words ("A2 direction")."""
+        path = field.removeprefix("sheet.")
+        for item in self.items.values():
+            for f in item["fields"]:
+                if path == f["path"] or path.startswith(f["path"] + "."):
+                    return f.get("words") or f["path"]
+        return path
+
+    def _worded(self, refused: GraderError) -> GraderError:
+        for error in refused.errors:
+            error.setdefault("words", self.words(error.get("field", "")))
+        return GraderError(refused.status, refused.detail, refused.errors)
+
     # --- the service's rules ------------------------------------------------------------------------------------------
     def save(self) -> str:
         """Store this sheet as your draft: the one the sheet page shows. Returns when it was saved."""
@@ -152,9 +166,12 @@ class Sheet:
             views.show(check)
             raise GraderError(0, "a config breaks the one-factor rule: fix it, or submit(accept_voids=True) knowing "
                                  "the items it voids get no credit")
-        self.save()
-        created = self.grader.call("POST", "/submissions",
-                                   json={"sheet": self.as_dict(), "assignment_id": self.assignment_id})
+        try:
+            self.save()
+            created = self.grader.call("POST", "/submissions",
+                                       json={"sheet": self.as_dict(), "assignment_id": self.assignment_id})
+        except GraderError as refused:  # each field in the student's words, as the check says them
+            raise self._worded(refused) from None
         submission = Submission(self.grader, created)
         if follow:
             submission.follow(poll_s=poll_s, timeout_s=timeout_s)

@@ -87,3 +87,15 @@ def test_a_withheld_report_says_why_instead_of_failing():
     shown = Submission(Refusing(), {"id": 7}).report()
     assert repr(shown) == "submission 7: grade of submission 7 is withheld: every item is shown from the due date"
     assert "http://grader/submissions/7" in shown._repr_html_()
+
+
+def test_a_refused_submission_names_each_field_in_the_students_words():
+    sheet = Sheet(None, {"assignment_id": 1, "title": "Week 3", "lesson": "L03", "part": "sheet", "configs": [],
+                         "draft": {"lesson": "L03", "student": "alice", "answers": {}},
+                         "items": [{"id": "A2", "question": "?", "fields": [
+                             {"path": "answers.A2.direction", "words": "A2 direction"}]}]})
+    refused = sheet._worded(GraderError(422, "invalid sheet", [
+        {"field": "sheet.answers.A2.direction", "rule": "Input should be 'decrease'"},
+        {"field": "assignment_id", "rule": "closed"}]))
+    assert str(refused).splitlines() == ["invalid sheet (HTTP 422)", "  A2 direction: Input should be 'decrease'",
+                                         "  assignment_id: closed"]
