@@ -1,4 +1,5 @@
-"""Human-readable L03 check reports: one self-contained HTML file and a plain-text summary for the command line.
+"""Human-readable lab check reports, of any lesson (contact and friction tables where such runs are there): one
+self-contained HTML file and a plain-text summary for the command line.
 
 Inputs are plain: a verdict, duck-typed conditions (anything with .title, .passed, .evidence and optionally .id),
 CaseResults and figure paths. Every piece of text that reaches HTML goes through html.escape, because case names,
@@ -22,8 +23,9 @@ REPORT_NAME = "report.html"
 # ------------------------------------------------------------------------------------------- rows (shared data)
 
 
-def _verdict(verdict: bool, conditions: Iterable = ()) -> str:
-    return verdict_line(verdict, [str(c.title) for c in conditions if not c.passed])
+def _verdict(verdict: bool, conditions: Iterable = (), line=None) -> str:
+    """The verdict line of the lesson whose check this is (`line`, a Lesson's verdict_line; by default rubric.check's)."""
+    return (line or verdict_line)(verdict, [str(c.title) for c in conditions if not c.passed])
 
 
 def _num(value: float | None, fmt: str, scale: float = 1.0) -> str:
@@ -200,14 +202,14 @@ def _figure_html(path: Path, out_dir: Path, *, embed: bool) -> str:
             f"<figcaption>{_e(path.name)}</figcaption></figure>")
 
 
-def _header(verdict: bool, conditions: list, results: Mapping[str, CaseResult], title: str) -> str:
+def _header(verdict: bool, conditions: list, results: Mapping[str, CaseResult], title: str, line=None) -> str:
     cls = "pass" if verdict else "fail"
     backends = sorted({r.backend for r in results.values()})
     versions = sorted({r.provenance.versions.get("genesis", "?") for r in results.values() if r.provenance})
     meta = (f"cases: {', '.join(results)} | actual backend: {', '.join(backends) or 'n/a'} | "
             f"genesis {', '.join(versions) or 'version unknown'}")
     return (f"<h1>{_e(title)}</h1><p class='meta'>{_e(meta)}</p>"
-            f"<div class='verdict {cls}'>{_e(_verdict(verdict, conditions))}</div>")
+            f"<div class='verdict {cls}'>{_e(_verdict(verdict, conditions, line))}</div>")
 
 
 def _errors_html(results: Mapping[str, CaseResult]) -> str:
@@ -223,46 +225,55 @@ def _errors_html(results: Mapping[str, CaseResult]) -> str:
 
 def render_check_html(*, verdict: bool, conditions: Iterable, results: Mapping[str, CaseResult],
                       figures: Iterable[str | Path] = (), out_dir: str | Path = ".", embed: bool = True,
-                      title: str = "L03 \u00b7 Rigid-Body Physics and Stable Simulation: lab check") -> str:
-    """The report as an HTML string (see write_check_report)."""
+                      title: str = "L03 \u00b7 Rigid-Body Physics and Stable Simulation: lab check",
+                      line=None) -> str:
+    """The report as an HTML string (see write_check_report). `line`: the lesson's verdict_line (the default
+    lesson's when not given); the contact and friction tables appear where the results hold such runs (or none at
+    all: a check that ran nothing still shows what it lacks)."""
     conditions, out_dir = list(conditions), Path(out_dir)
+    contact, sliding = contact_rows(results), lane_rows(results)
+    part_tables = bool(contact or sliding or not results)
 
     def swatch(row, column):
         color = lane_color(results, row.get("run", ""), row.get("lane", "")) if column == "lane" else None
         return f"<span class='swatch' style='background: {_e(color)}'></span>" if color else ""
 
     body = [
-        _header(verdict, conditions, results, title),
+        _header(verdict, conditions, results, title, line),
         "<h2>Conditions</h2>", _conditions_table(conditions),
+        *([] if not part_tables else [
         "<h2>Part A: contact cases</h2>",
         "<p class='meta'>penetration proxy = max(0, ideal rest height \u2212 lowest sampled centre height), sampled "
         "once per outer dt: not the solver's continuous penetration depth. Separation samples need contact count 0 "
         "and clearance above the declared tolerance after first contact; their duration is quantized by dt.</p>",
-        _html_table(contact_rows(results)),
+        _html_table(contact),
         "<h2>Part B: friction lanes</h2>",
         "<p class='meta'>effective pair \u03bc: the sliding friction the engine assigned to each lane's cube-table "
         "contacts, read from its contact data and cross-checked against the Genesis 1.3.3 rule max(table \u03bc, cube "
         "\u03bc) (a disagreement is shown as \u2260 rule). A stop is the "
         "first sample of a full hold interval with |vx| below the declared stop speed.</p>",
-        _html_table(lane_rows(results), cell_prefix=swatch),
+        _html_table(sliding, cell_prefix=swatch)]),
         "<h2>Provenance</h2>", _html_table(provenance_rows(results)),
         _errors_html(results),
         "<h2>Figures</h2>",
         *(_figure_html(Path(p), out_dir, embed=embed) for p in figures),
     ]
     return ("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
-            f"<title>{_e(_verdict(verdict, conditions))}</title><style>{CSS}</style></head><body>"
+            f"<title>{_e(_verdict(verdict, conditions, line))}</title><style>{CSS}</style></head><body>"
             + "\n".join(body) + "</body></html>\n")
 
 
 def write_check_report(out_dir: str | Path, *, verdict: bool, conditions: Iterable, results: Mapping[str, CaseResult],
-                       figures: Iterable[str | Path] = (), embed: bool = True, filename: str = REPORT_NAME) -> Path:
-    """Write the L03 check report into out_dir and return its path; figures embedded as base64 unless embed=False."""
+                       figures: Iterable[str | Path] = (), embed: bool = True, filename: str = REPORT_NAME,
+                       lesson=None) -> Path:
+    """Write a lesson's check report into out_dir and return its path (`lesson`: its declaration, for its title and
+    verdict line; the default lesson's when not given); figures embedded as base64 unless embed=False."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / filename
+    named = {} if lesson is None else {"title": f"{lesson.title('en')}: lab check", "line": lesson.verdict_line}
     path.write_text(render_check_html(verdict=verdict, conditions=conditions, results=results, figures=figures,
-                                      out_dir=out_dir, embed=embed), encoding="utf-8")
+                                      out_dir=out_dir, embed=embed, **named), encoding="utf-8")
     return path
 
 

@@ -36,10 +36,13 @@ from .discrepancy import (
 from .copying import CopyEvidence, copy_evidence
 from .exports import grades_csv, gradescope_results
 from .governance import ReportChanges, RubricGovernanceError, publish_variant_space, publish_version, report_changes
-from .one_factor import ConfigFinding, one_factor_findings
+from .one_factor import ConfigFinding
 from .rubrics import Rubric, load_rubric
-from .scoring import ArchivedRubric, GradeReport, ItemGrade, cases_to_run, grade_sheet
-from .sheet import PredictionSheet, parse_sheet
+from .scoring import ArchivedRubric, GradeReport, ItemGrade
+from .sheet import PredictionSheet
+# A sheet is parsed, run and graded by the lesson it names (rubric.lesson: found by entry point), L03 or another.
+from .lesson import parse_sheet
+
 from .variants import (
     Variant,
     VariantPoolError,
@@ -51,6 +54,28 @@ from .variants import (
     variant_cases,
     variant_space_for,
 )
+
+
+def cases_to_run(sheet, rubric: Rubric | None = None, variant: Variant | None = None) -> list:
+    """Every case grading `sheet` needs, by its lesson's declaration (rubric.scoring.cases_to_run for L03)."""
+    from .lesson import lesson
+
+    return lesson(sheet.lesson).cases_to_run(sheet, rubric, variant)
+
+
+def one_factor_findings(sheet, rubric: Rubric, variant: Variant | None = None) -> dict[str, ConfigFinding]:
+    """Each submitted config compared with its rule's baseline, by the sheet's lesson (rubric.one_factor for L03)."""
+    from .lesson import lesson
+
+    return dict(lesson(sheet.lesson).config_findings(sheet, rubric, variant))
+
+
+def grade_sheet(sheet, results, rubric: Rubric | None = None, variant: Variant | None = None) -> GradeReport:
+    """The sheet graded on its measured runs, by its lesson's declaration (rubric.scoring.grade_sheet for L03)."""
+    from .lesson import lesson
+
+    return lesson(sheet.lesson).grade_sheet(sheet, results, rubric, variant)
+
 
 __all__ = [
     "ArrayDiff",

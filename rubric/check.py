@@ -50,12 +50,18 @@ def variant_timing(variant: Variant) -> tuple[dict[str, dict], float]:
     return table, p["duration"]
 
 
-def verdict_line(passed: bool, failed: Iterable[str] = ()) -> str:
-    """The lesson's verdict: 'L03 CHECK: PASSED', or 'L03 CHECK: FAILED', optionally naming the failed conditions."""
+def check_line(lesson: str, passed: bool, failed: Iterable[str] = ()) -> str:
+    """A lesson's verdict: '<LESSON> CHECK: PASSED', or '<LESSON> CHECK: FAILED', optionally naming the failed
+    conditions."""
     if passed:
-        return "L03 CHECK: PASSED"
+        return f"{lesson} CHECK: PASSED"
     failed = list(failed)
-    return "L03 CHECK: FAILED" + (" \u2014 " + "; ".join(failed) if failed else "")
+    return f"{lesson} CHECK: FAILED" + (" \u2014 " + "; ".join(failed) if failed else "")
+
+
+def verdict_line(passed: bool, failed: Iterable[str] = ()) -> str:
+    """L03's verdict: 'L03 CHECK: PASSED', or 'L03 CHECK: FAILED', optionally naming the failed conditions."""
+    return check_line("L03", passed, failed)
 
 
 class Condition(BaseModel):
@@ -97,21 +103,25 @@ class CheckOutcome(BaseModel):
     backends: dict[str, str] = {}
 
 
-class CheckReport(BaseModel):
+class LabReport(BaseModel):
+    """A lesson's lab check as evaluated: every condition with its evidence, the backends of the runs it read and the
+    rubric version whose tolerances judged it. A lesson's report says its own verdict line (`line`)."""
+
     passed: bool
     conditions: list[Condition]
-    contact: dict[str, ContactMetrics]
-    lanes: list[LaneMetrics]
-    alignment: Alignment | None
     backends: dict[str, str]
     rubric_version: str
+
+    @staticmethod
+    def line(passed: bool, failed: Iterable[str] = ()) -> str:
+        return verdict_line(passed, failed)
 
     @property
     def failed(self) -> list[Condition]:
         return [c for c in self.conditions if not c.passed]
 
     def verdict_line(self) -> str:
-        return verdict_line(self.passed)
+        return self.line(self.passed)
 
     def outcome(self, notes: dict[str, str] | None = None) -> CheckOutcome:
         """The stored form. `notes` (condition id -> text) are appended to that condition's evidence: what the
@@ -122,7 +132,7 @@ class CheckReport(BaseModel):
             raise KeyError(f"notes for unknown conditions: {sorted(unknown)}")
         conditions = [c.model_copy(update={"evidence": c.evidence + ("\n" + notes[c.id] if c.id in notes else "")})
                       for c in self.conditions]
-        return CheckOutcome(passed=self.passed, verdict_line=verdict_line(self.passed, [c.title for c in self.failed]),
+        return CheckOutcome(passed=self.passed, verdict_line=self.line(self.passed, [c.title for c in self.failed]),
                             conditions=conditions, rubric_version=self.rubric_version, backends=self.backends)
 
     def render_text(self) -> str:
@@ -135,6 +145,14 @@ class CheckReport(BaseModel):
         for c in self.failed:
             lines.append(f"  failed: {c.title}")
         return "\n".join(lines)
+
+
+class CheckReport(LabReport):
+    """L03's lab check: its conditions and the metrics they read."""
+
+    contact: dict[str, ContactMetrics]
+    lanes: list[LaneMetrics]
+    alignment: Alignment | None
 
 
 def evaluate(results: dict[str, CaseResult], *, outputs: OutputLocation, rubric: Rubric | None = None,

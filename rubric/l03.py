@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import functools
 
-from . import cases, check, scoring, specs
+from . import cases, check, metrics, one_factor, results, scoring, sheet, specs
 from .lesson import Lesson
+from .metrics import ContactMetrics, FrictionMetrics
 from .rubrics import LESSONS_DIR, load_rubric
 from .specs import ContactCase, FrictionCase
 
@@ -55,4 +56,12 @@ LESSON = Lesson(
     runs_read=runs_read,
     physics_key=physics_key,
     archived_versions=("1",),
+    parse_sheet=sheet.parse_sheet,
+    config_findings=one_factor.one_factor_findings,
+    sheet_model=sheet.PredictionSheet,
+    lesson_run_specs=scoring.lesson_run_specs,
+    checkpoint_ids=sheet.CHECKPOINT_IDS,
+    expected_arrays=results.expected_arrays,
+    case_metrics=metrics.case_metrics,
+    metrics_models={"contact": ContactMetrics, "friction": FrictionMetrics},
 )

@@ -82,6 +82,26 @@ class Lesson:
     # Rubric versions kept readable for the grades stored under them but never used to grade again: their items may
     # name rules the lesson no longer has.
     archived_versions: Sequence[str] = ()
+    # Its sheet: (data, part) -> the validated sheet (pydantic.ValidationError naming each bad item), part being
+    # "checkpoints", "exercises" or "sheet". A sheet has `lesson`, `student`, `answers` (one field per item it answers)
+    # and `configs` (`submitted()`: {role: spec} of the student's own configs).
+    parse_sheet: Callable[[Any, str], Any] | None = None
+    # (sheet, rubric, variant) -> {role: rubric.one_factor.ConfigFinding}: each submitted config compared with the
+    # baseline its rubric rule declares (a config that breaks its rule is graded as such, never run).
+    config_findings: Callable[..., Mapping[str, Any]] | None = None
+    # The model of its whole sheet (parse_sheet's for the part "sheet"): its `answers` model has one field per item,
+    # its `configs` model one per config role (the required ones are those the sheet form edits).
+    sheet_model: type | None = None
+    # variant -> the specs of the lesson's own runs every sheet is graded on (what a form's Check reads as stored)
+    lesson_run_specs: Callable[[Any], Sequence[Any]] | None = None
+    # The items of its concept checkpoints: a sheet answering only these needs no config of its own.
+    checkpoint_ids: Sequence[str] = ()
+    # Per case kind, where a case ran (worker.case_process): the arrays a valid result holds ({name: (shape or None
+    # for a frame, dtype kind)}) and the metrics computed from them once; `metrics_models` {kind: model} reads stored
+    # metrics back (each model has a `kind` field).
+    expected_arrays: Callable[[Any], dict] | None = None
+    case_metrics: Callable[[Any, Mapping], Any] | None = None
+    metrics_models: Mapping[str, type] = field(default_factory=dict)
     origin: str = field(default="", compare=False)  # where the declaration was found (an entry point or a file)
 
     def title(self, language: str) -> str:
@@ -97,6 +117,17 @@ class Lesson:
 
     def variant_files(self) -> dict[str, Path]:
         return _versioned(self.files, rf"^{re.escape(self.name)}-lab-variants-v([0-9.]+)\.yaml$")
+
+    def answers_model(self) -> type:
+        """The model of a whole sheet's answers: one field per item, its answer's model."""
+        return self.sheet_model.model_fields["answers"].annotation
+
+    def configs_model(self) -> type:
+        return self.sheet_model.model_fields["configs"].annotation
+
+    def form_configs(self) -> tuple[str, ...]:
+        """The config roles every whole sheet submits (the sheet form edits them; optional ones travel in YAML)."""
+        return tuple(name for name, info in self.configs_model().model_fields.items() if info.is_required())
 
     def text_file(self, language: str) -> Path:
         """Where its texts in `language` (not English) live."""
@@ -152,6 +183,60 @@ def parse_spec(data: Mapping[str, Any]):
     return lesson_of_kind(kind).case_kinds[kind].model_validate(data)
 
 
+def sheet_lesson(data: Any) -> Lesson:
+    """The installed lesson a sheet says it answers (its `lesson` field); pydantic.ValidationError at `lesson` naming
+    the installed lessons when it names none of them, as any other bad field of a sheet is reported."""
+    name = data.get("lesson") if isinstance(data, Mapping) else None
+    if isinstance(name, str) and name in _installed():
+        return lesson(name)
+    from pydantic import ValidationError
+    from pydantic_core import InitErrorDetails, PydanticCustomError
+
+    known = " or ".join(repr(n) for n in lesson_names()) or "an installed lesson"
+    if not isinstance(data, Mapping):
+        detail = InitErrorDetails(type=PydanticCustomError("sheet_type", "a sheet is a mapping of lesson, student, "
+                                                           "answers and configs"), loc=(), input=data)
+    elif "lesson" not in data:
+        detail = InitErrorDetails(type="missing", loc=("lesson",), input=data)
+    else:
+        detail = InitErrorDetails(type=PydanticCustomError("lesson", "Input should be {known} (the installed lessons)",
+                                                           {"known": known}), loc=("lesson",), input=name)
+    raise ValidationError.from_exception_data("PredictionSheet", [detail])
+
+
+def parse_sheet(data: Any, part: str = "sheet"):
+    """A sheet validated by the model of the lesson it names (`sheet_lesson`); `part` as Lesson.parse_sheet."""
+    return sheet_lesson(data).parse_sheet(data, part)
+
+
+def answered(sheet) -> tuple[str, ...]:
+    """The item ids a sheet answers: all of its lesson's items, or one assignment's part."""
+    return tuple(type(sheet.answers).model_fields)
+
+
+def checkpoints_only(sheet) -> bool:
+    """A sheet answering its lesson's concept checkpoints alone: it needs only the lesson's own cases."""
+    return set(answered(sheet)) <= set(lesson(sheet.lesson).checkpoint_ids)
+
+
+def case_metrics(spec, arrays: Mapping):
+    """Every metric of one validated case of any installed lesson, by its kind's declaration."""
+    return lesson_of_kind(spec.kind).case_metrics(spec, arrays)
+
+
+def expected_arrays(spec) -> dict:
+    """The arrays a valid result of `spec` holds, by its lesson's declaration."""
+    return lesson_of_kind(spec.kind).expected_arrays(spec)
+
+
+def parse_metrics(data: Mapping):
+    """Stored metrics (metrics.json or a database column) back into the model its kind's lesson declares."""
+    kind = data.get("kind") if isinstance(data, Mapping) else None
+    if not isinstance(kind, str):
+        raise LessonNotFound("stored metrics name their case kind (\"kind\")")
+    return lesson_of_kind(kind).metrics_models[kind].model_validate(data)
+
+
 def load_lesson(path: Path) -> Lesson:
     """The lesson a Python file declares as `LESSON` (a lesson author's package before it is installed: the file, or
     a folder holding `lesson.py`)."""
@@ -176,5 +261,6 @@ def _checked(declared, origin: str, name: str | None) -> Lesson:
     return dataclasses.replace(declared, origin=origin)
 
 
-__all__ = ["ENTRY_POINTS", "Lesson", "LessonNotFound", "SHEET_CASE_PREFIX", "SOURCE_LANGUAGE", "lesson", "lesson_names", "lesson_of_kind",
-           "load_lesson", "parse_spec"]
+__all__ = ["ENTRY_POINTS", "Lesson", "LessonNotFound", "SHEET_CASE_PREFIX", "SOURCE_LANGUAGE", "answered", "case_metrics",
+           "checkpoints_only", "expected_arrays", "lesson", "lesson_names", "lesson_of_kind", "load_lesson",
+           "parse_metrics", "parse_sheet", "parse_spec", "sheet_lesson"]

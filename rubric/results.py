@@ -153,8 +153,10 @@ def expected_arrays(spec: ContactCase | FrictionCase) -> dict[str, tuple[tuple[i
 
 def validate_arrays(spec: ContactCase | FrictionCase, arrays: dict[str, np.ndarray], *, render: bool) -> list[str]:
     """Every reason these arrays cannot be accepted as a result of `spec`; empty when they can."""
+    from .lesson import expected_arrays as declared  # any installed lesson's kind, by its declaration
+
     problems = []
-    expected = expected_arrays(spec)
+    expected = declared(spec)
     for name in sorted(set(expected) - set(arrays)):
         problems.append(f"{name}: missing")
     for name in sorted(set(arrays) - set(expected)):
@@ -215,7 +217,9 @@ def discretization_problems(spec: ContactCase | FrictionCase, reported: Discreti
         steps = np.diff(t)
         if not np.allclose(steps, reported.dt, rtol=1e-6, atol=1e-9):
             problems.append(f"t: sample spacing {steps.min():.6g}..{steps.max():.6g} s, engine dt {reported.dt:g} s")
-        span = float(t[-1] - t[0]) + (reported.dt if isinstance(spec, ContactCase) else 0.0)
+        # samples taken after every outer step cover one step more than their first-to-last span; a first sample
+        # at measurement time zero (one more sample than steps) does not
+        span = float(t[-1] - t[0]) + (reported.dt if spec.sample_count == spec.n_steps else 0.0)
         if not math.isclose(span, reported.duration, rel_tol=1e-6, abs_tol=1e-9):
             problems.append(f"t: samples cover {span:.6g} s, engine duration {reported.duration:.6g} s")
     return problems

@@ -22,7 +22,9 @@ LESSONS_DIR = Path(__file__).parent / "lessons"
 VERSION_PATTERN = r"^[0-9]+(\.[0-9]+)*$"
 
 ItemKind = Literal["computed", "measured", "conceptual", "config"]
-ConfigRole = Literal["N1", "N2", "N3", "N4", "table_exercise", "extension"]
+# A role of the sheet's configs (its lesson's sheet model names them: L03's N1-N4, table_exercise, extension);
+# `grader lesson check` finds a rubric naming one its sheet does not have.
+ConfigRole = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$", max_length=32)]
 
 
 class RubricModel(BaseModel):

@@ -139,6 +139,21 @@ def rendered_n1(tmp_path_factory, worker_id) -> CaseResult:
     return _shared_runs(tmp_path_factory, worker_id, "rendered", [spec], mode="isolated")["N1"]
 
 
+@pytest.fixture(scope="session")
+def l02_measured(tmp_path_factory, worker_id) -> dict[str, CaseResult]:
+    """L02's runs of its reference sheet (S1, S2 and the exercise's config as sheet.exercise), measured once per test
+    run in one warm Genesis process, shared as `measured` is."""
+    from pathlib import Path
+
+    import yaml
+
+    from rubric import cases_to_run, parse_sheet
+
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    sheet = parse_sheet(yaml.safe_load((examples / "l02" / "reference.yaml").read_text()))
+    return _shared_runs(tmp_path_factory, worker_id, "l02", cases_to_run(sheet), mode="warm")
+
+
 def _shared_runs(tmp_path_factory, worker_id, name: str, specs: list, *, mode: str, jobs: int = 1):
     """Run `specs` once per test run (see `measured`); every run must succeed on real Genesis."""
     from filelock import FileLock

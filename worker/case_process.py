@@ -25,11 +25,16 @@ from pathlib import Path
 
 import numpy as np
 
-from rubric import CaseResult, ContactCase, FrictionCase, Provenance, validate_arrays
-from rubric.metrics import case_metrics
+from rubric import CaseResult, Provenance, validate_arrays
+from rubric.lesson import case_metrics
 from rubric.results import discretization_problems
+from rubric.specs import Timing
 
 from .errors import EXIT_PROVENANCE, EXIT_RENDER, memory_limit_error
+
+# A case spec of any installed lesson's kind (rubric.lesson.Lesson.case_kinds): rubric.specs' Timing and Execution
+# fields, its kind and its name.
+CaseKindSpec = Timing
 
 DEFAULT_TIMEOUT_S = 900.0
 # settings.case_memory_limit_mb's default (the worker's slot passes the setting); a case process imports no settings.
@@ -94,7 +99,7 @@ def _resident_mb(pid: int) -> int | None:
     return None  # a zombie has no VmRSS
 
 
-def _prepare(spec: ContactCase | FrictionCase, out_dir: Path) -> Path:
+def _prepare(spec: CaseKindSpec, out_dir: Path) -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
     # Stale evidence from an earlier run in this folder must never pass for this run's result.
     for name in EVIDENCE_FILES:
@@ -105,7 +110,7 @@ def _prepare(spec: ContactCase | FrictionCase, out_dir: Path) -> Path:
 
 
 def run_case(
-    spec: ContactCase | FrictionCase,
+    spec: CaseKindSpec,
     out_dir: str | Path,
     *,
     mode: str = "isolated",
@@ -143,7 +148,7 @@ def run_case(
 
 
 def load_result(
-    spec: ContactCase | FrictionCase,
+    spec: CaseKindSpec,
     out_dir: Path,
     *,
     exit_status: int | None,
@@ -361,7 +366,7 @@ class WarmCaseProcess:
 
 
 def run_cases(
-    specs: Iterable[ContactCase | FrictionCase],
+    specs: Iterable[CaseKindSpec],
     out_root: str | Path,
     *,
     mode: str = "isolated",

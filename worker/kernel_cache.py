@@ -17,6 +17,7 @@ the development machine: a lock left by a killed case process made every case pr
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import subprocess
@@ -68,7 +69,16 @@ def _versions_key(backend: str) -> str:
             versions.append(f"{dist}-{metadata.version(dist)}")
         except metadata.PackageNotFoundError:
             versions.append(f"{dist}-none")
-    return "_".join([backend, *versions])
+    return "_".join([backend, *versions, _scenes_key()])
+
+
+def _scenes_key() -> str:
+    """The installed lessons' warm-up scenes, digested: a lesson installed since the kernels were compiled (or a
+    scene of one changed) compiles its kernels once more, rather than in the first case process that meets them."""
+    from worker.warm_process import warm_up_cases
+
+    text = json.dumps([[name, spec.model_dump(mode="json")] for name, spec in warm_up_cases()], sort_keys=True)
+    return "scenes-" + hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
 def compiled_marker(backend: str) -> Path:

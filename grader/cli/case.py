@@ -1,4 +1,4 @@
-"""`grader case`: list, show, schema and run single L03 case specs."""
+"""`grader case`: list, show, schema and run single case specs of the installed lessons."""
 
 from __future__ import annotations
 
@@ -11,7 +11,8 @@ import click
 from grader.core.states import ExecutionMode, values
 from pydantic import TypeAdapter, ValidationError
 
-from rubric import BASELINE_CASES, CaseSpec, describe_errors, get_case, parse_case
+from rubric import CaseSpec, describe_errors, parse_case
+from rubric.lesson import lesson, lesson_names
 from worker import run_case
 
 
@@ -20,10 +21,15 @@ def case() -> None:
     """Inspect and run single simulation cases."""
 
 
+def _cases() -> dict[str, object]:
+    """Every installed lesson's cases by name (lesson by lesson; a case name is one lesson's)."""
+    return {name: spec for declared in map(lesson, lesson_names()) for name, spec in declared.cases.items()}
+
+
 @case.command("list")
 def list_cases() -> None:
-    """List the baseline case names."""
-    for name, spec in BASELINE_CASES.items():
+    """List the installed lessons' case names."""
+    for name, spec in _cases().items():
         click.echo(f"{name:22s} {spec.kind:8s} dt={spec.dt} substeps={spec.substeps} duration={spec.duration}")
 
 
@@ -31,12 +37,11 @@ def list_cases() -> None:
 @click.argument("name")
 @click.option("--derived", is_flag=True, help="Also print derived quantities (substep_dt, n_steps, ...).")
 def show(name: str, derived: bool) -> None:
-    """Print a baseline case spec as JSON (runnable with `grader case run`)."""
-    try:
-        spec = get_case(name)
-    except KeyError as exc:
-        raise click.ClickException(exc.args[0]) from None
-    click.echo(json.dumps(spec.model_dump(mode="json", exclude_computed_fields=not derived), indent=2))
+    """Print a lesson's case spec as JSON (runnable with `grader case run`)."""
+    cases = _cases()
+    if name not in cases:
+        raise click.ClickException(f"unknown case {name!r}; known cases: {', '.join(cases)}")
+    click.echo(json.dumps(cases[name].model_dump(mode="json", exclude_computed_fields=not derived), indent=2))
 
 
 @case.command()

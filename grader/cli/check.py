@@ -78,7 +78,7 @@ def run_check(
     (out_dir / "check.json").write_text(report.model_dump_json(indent=2))
     (out_dir / "check.txt").write_text(report.render_text() + "\n")
     html = write_check_report(out_dir, verdict=report.passed, conditions=report.conditions, results=results,
-                              figures=figures)
+                              figures=figures, lesson=lesson)
     echo(f"figures: {len(figures)} PNGs in {out_dir / 'figures'}; report: {html}")
     return report, results
 

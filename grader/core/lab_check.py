@@ -21,8 +21,9 @@ import subprocess
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-from rubric import CHECK_CASES, CaseResult, Rubric, Variant
-from rubric.check import CheckOutcome, OutputLocation, evaluate
+from rubric import CaseResult, Rubric, Variant
+from rubric.check import CheckOutcome, OutputLocation
+from rubric.lesson import lesson
 
 # Shared by the worker (worker/grading.py, when it completes a grade) and the regrade
 # (grader/services/rubrics/regrade.py): a check depends on the rubric version's tolerances, so a regrade evaluates
@@ -31,16 +32,21 @@ from rubric.check import CheckOutcome, OutputLocation, evaluate
 
 def submission_check(results: Mapping[str, CaseResult], *, artifacts_dir: Path, rubric: Rubric,
                      reused: Mapping[str, int] | None = None, variant: Variant | None = None) -> CheckOutcome:
-    """The L03 check over the submission's runs of the check's cases (N1-N4, friction-baseline, friction-table-0.30).
+    """The lesson's lab check over the submission's runs of the cases it declares (L03: N1-N4, friction-baseline,
+    friction-table-0.30).
 
     The student's own configs (sheet.*) and the colour-swapped control are not lab-check cases; a check case the
     submission lacks is reported as not run. `reused` maps a case name to the case run whose measurement it reused.
     `variant`: the submission's pool variant (its timing table and duration); None: the lesson's shipped cases.
     """
-    lab = {name: results[name] for name in CHECK_CASES if name in results}
+    declared = lesson(rubric.lesson)
+    lab = {name: results[name] for name in declared.check_cases if name in results}
     outputs = output_location(lab.values(), artifacts_dir=Path(artifacts_dir))
-    report = evaluate(lab, outputs=outputs, rubric=rubric, variant=variant)
-    return report.outcome(notes=_service_notes(lab, reused or {}))
+    report = declared.evaluate_check(lab, outputs=outputs, rubric=rubric, variant=variant)
+    # What a condition means in the service, for the conditions the lesson's check has (its runs' processes, its
+    # rendering, its outputs: L03's ids; a lesson without such a condition gets no note for it)
+    ids = {c.id for c in report.conditions}
+    return report.outcome(notes={k: v for k, v in _service_notes(lab, reused or {}).items() if k in ids})
 
 
 def _service_notes(lab: Mapping[str, CaseResult], reused: Mapping[str, int]) -> dict[str, str]:

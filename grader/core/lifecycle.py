@@ -24,7 +24,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, object_session
 
 from rubric import CaseResult, Provenance, parse_case
-from rubric.metrics import parse_metrics
+from rubric.lesson import parse_metrics
 
 from grader.core.models import CaseEvidence, CaseRun, Event, Grade, Measurement, Submission, utcnow
 from grader.core.settings import settings

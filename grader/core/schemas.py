@@ -210,7 +210,7 @@ class AssignmentCreate(Strict):
     """An assignment of one lesson in the instructor's course. Times are ISO 8601 with an offset."""
 
     title: str = Field(min_length=1, max_length=128)
-    lesson: Literal["L03"] = "L03"
+    lesson: str = Field("L03", max_length=16, description="An installed lesson (`grader lesson list` names them)")
     part: AssignmentParts = Field(
         AssignmentParts.SHEET, description="The part of the sheet it holds. checkpoints: the lesson's concept checkpoints only (graded on the lesson's own cases, "
                              "at once where they are stored); exercises: every "
@@ -232,6 +232,16 @@ class AssignmentCreate(Strict):
         default_factory=dict, max_length=64, description=(
             "Items shown otherwise than `visibility`, e.g. {\"C3\": \"on_release\"}; each must be one of the "
             "assignment's items"))
+
+    @field_validator("lesson")
+    @classmethod
+    def _installed_lesson(cls, value: str) -> str:
+        from rubric.lesson import lesson_names
+
+        if value not in lesson_names():
+            raise PydanticCustomError("lesson", "'{value}' is not an installed lesson (installed: {known})",
+                                      {"value": value, "known": ", ".join(lesson_names())})
+        return value
 
     @field_validator("due_at")
     @classmethod

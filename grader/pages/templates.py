@@ -69,22 +69,29 @@ def message(context, text) -> str:
     return i18n.message(_locale(context), text)
 
 
+def _lesson(context) -> tuple[str, ...]:
+    """The lesson whose texts the page shows: the page's `lesson` (an assignment's, a submission's), else i18n's
+    default."""
+    name = context.get("lesson")
+    return (name,) if isinstance(name, str) and name else ()
+
+
 @pass_context
 def lesson(context, text, section: str = "questions") -> str:
     """The lesson's own text (a question, a config rule, an answer label or choice) in the page's language."""
-    return i18n.lesson_word(_locale(context), section, text)
+    return i18n.lesson_word(_locale(context), section, text, *_lesson(context))
 
 
 @pass_context
 def answer(context, text) -> str:
     """A student's stored answer to an item in the form's words, in the page's language."""
-    return i18n.answer(_locale(context), text)
+    return i18n.answer(_locale(context), text, *_lesson(context))
 
 
 @pass_context
 def expected(context, text) -> str:
     """An item's expected answer, as a scoring rule stated it, in the form's words and the page's language."""
-    return i18n.expected(_locale(context), text)
+    return i18n.expected(_locale(context), text, *_lesson(context))
 
 
 TEMPLATES.env.filters.update(local=local_time, num=number, pct=percent, msg=message, lesson=lesson, answer=answer,

@@ -309,7 +309,15 @@ def _grade_item(ctx: Context, item: Item) -> ItemGrade:
         outcome = Outcome("one_factor_violation", "a one-factor config", str(exc))
     except NotMeasured as exc:
         outcome = Outcome("not_measured", "a measured result", str(exc))
-    tolerances = _tolerances(ctx.rubric, item)
+    # Under a variant the question names the variant's numbers (rubric.variants.texts); else the rubric's text.
+    return item_grade(item, answer, outcome, ctx.rubric, question=item_question(item, ctx.variant))
+
+
+def item_grade(item: Item, answer, outcome: Outcome, rubric: Rubric, *, question: str | None = None) -> ItemGrade:
+    """One item's grade from its rule's outcome: the score, and feedback saying how it was decided, the prediction,
+    the expected answer, the evidence with its backends, the tolerances and the verdict. Every lesson's scorer builds
+    its items with it, so that a report reads the same whatever the lesson."""
+    tolerances = _tolerances(rubric, item)
     feedback = [f"{_HOW[item.kind]}.", f"Prediction: {_prediction(answer)}.", f"Expected: {outcome.expected}."]
     if outcome.measured:
         on = ", ".join(f"{case} on {backend}" for case, backend in outcome.backends.items())
@@ -319,8 +327,8 @@ def _grade_item(ctx: Context, item: Item) -> ItemGrade:
     feedback.append(f"Verdict: {_VERDICT_TEXT[outcome.verdict]}.")
     counted = outcome.verdict != "inconclusive"
     return ItemGrade(
-        # Under a variant the question names the variant's numbers (rubric.variants.texts); else the rubric's text.
-        id=item.id, question=item_question(item, ctx.variant), part=item.part, kind=item.kind, points=item.points,
+        id=item.id, question=question if question is not None else item.question, part=item.part, kind=item.kind,
+        points=item.points,
         score=item.points if outcome.verdict == "credit" else 0.0,
         max_score=item.points if counted else 0.0,
         verdict=outcome.verdict, prediction=_prediction(answer), expected=outcome.expected, measured=outcome.measured,

@@ -30,7 +30,10 @@ def lab_figures(results: Mapping[str, CaseResult], out_dir: str | Path, *, cache
     """Every figure the results support, by their lesson (none without results)."""
     if not results:
         return []
-    return figures_of(next(iter(results.values())).spec.kind).lab_figures(results, out_dir, cache=cache, **options)
+    kind = next(iter(results.values())).spec.kind
+    if not lesson_of_kind(kind).figures:
+        return []  # a lesson that declares no figures draws none (its report shows its conditions and numbers)
+    return figures_of(kind).lab_figures(results, out_dir, cache=cache, **options)
 
 
 def draw_comparison(a: CaseResult, b: CaseResult, comparison, folder: Path) -> list[Path]:

@@ -93,7 +93,7 @@ def report_response(request: Request, session, user, submission: Submission, *, 
         attempt = _attempts(session, [submission], user).get(submission.id)
     view = report_view(submission, grade if grade.shown else None, grade.withheld_runs)
     return TEMPLATES.TemplateResponse(request, "submissions/report.html", {
-        "user": user, "view": view, "part_titles": PART_TITLES, "attempt": attempt,
+        "user": user, "view": view, "part_titles": PART_TITLES, "attempt": attempt, "lesson": submission.lesson,
         "history": [] if grade.hidden else grade_history(session, submission.id),
         "charts": _charts(submission, grade.withheld_runs),
         "series_url": f"/submissions/{submission.id}/series.json",

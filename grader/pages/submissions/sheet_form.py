@@ -314,7 +314,7 @@ def _render(request: Request, session, user: User, assignment: Assignment | None
     ids = assignments.item_ids(lesson, part)
     items = form_logic.item_forms(book, ids, variant, locale)
     book_configs = book if form_logic.has_configs(part) else None
-    configs = ({role: _config_fields(book, role, sheet, variant) for role in form_logic.FORM_CONFIGS}
+    configs = ({role: _config_fields(book, role, sheet, variant) for role in form_logic.form_configs(book)}
                if book_configs else {})
     checks = []
     if checked and book_configs is not None:
@@ -326,7 +326,7 @@ def _render(request: Request, session, user: User, assignment: Assignment | None
              + [f.name for fields in configs.values() for f in fields])
     placed, unplaced = form_logic.by_input(errors or [], names)
     extra_roles = sorted(set((sheet.get("configs") or {}) if isinstance(sheet.get("configs"), dict) else ())
-                         - set(form_logic.FORM_CONFIGS))
+                         - set(form_logic.form_configs(book)))
     values = form_logic.form_state(sheet, items, book_configs, variant)
     # A role's held fields are editable when asked for (the "change a held field" button without the script), when
     # the draft already changed one, or when an error sits in one.

@@ -96,7 +96,21 @@ def _run(submission: Submission, run: CaseRun, withheld: Mapping[str, str]) -> d
         return entry | {"error": result.error or f"case run {run.status}"}
     genesis = result.provenance.versions.get("genesis") if result.provenance else None
     entry |= {"genesis": genesis, "execution": result.provenance.execution_mode if result.provenance else None}
-    return entry | (_contact(result) if isinstance(result.spec, ContactCase) else _friction(result))
+    if isinstance(result.spec, ContactCase):
+        return entry | _contact(result)
+    if isinstance(result.spec, FrictionCase):
+        return entry | _friction(result)
+    return entry | _sampled(result)
+
+
+def _sampled(result: CaseResult) -> dict:
+    """A run of a kind the report draws no chart of (another lesson's): its timing, its metrics and every sampled
+    series (the one-dimensional arrays, one value per sample), so that the data behind its grade is there to read."""
+    n = len(result.arrays.get("t", ()))
+    return {"dt": result.spec.dt, "substeps": result.spec.substeps, "substep_dt": result.spec.substep_dt,
+            "metrics": result.metrics.model_dump(mode="json", exclude={"kind", "case"}),
+            "series": {name: compact(values) for name, values in result.arrays.items()
+                       if np.ndim(values) == 1 and len(values) == n and np.asarray(values).dtype.kind in "fiu"}}
 
 
 def submission_series(*, submission: Submission, withheld: Mapping[str, str] | None = None) -> dict:

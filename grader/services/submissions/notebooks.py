@@ -261,7 +261,7 @@ def sheet_view(*, session: Session, user: User, assignment: Assignment, locale: 
                           "widget": f.widget, "choices": list(f.choices), "units": list(f.units),
                           "required": f.required} for f in item.inputs]}
              for item in _items(book, assignment, variant, locale)]
-    roles = sheet_form.FORM_CONFIGS if sheet_form.has_configs(assignment.part) else ()
+    roles = sheet_form.form_configs(book) if sheet_form.has_configs(assignment.part) else ()
     configs = [{"role": role, "baseline": book.configs[role].baseline,
                 "may_change": list(book.configs[role].may_change),
                 "rule": i18n.lesson_word(locale, "configs", book.configs[role].description, assignment.lesson)}

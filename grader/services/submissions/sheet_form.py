@@ -36,15 +36,21 @@ from grader.services.setup import student_variants
 from grader.services.submissions import sheets
 from grader.services.errors import Invalid, field_errors
 from rubric import Variant, describe_errors, one_factor_findings, sheet_files
+from rubric.lesson import Lesson, lesson
 from rubric.one_factor import role_baseline
 from rubric.rubrics import Rubric
-from rubric.scoring import lesson_run_specs
-from rubric.sheet import Answers, Configs, PredictionSheet, Quantity
+from rubric.sheet import PredictionSheet, Quantity
 from rubric.variants import texts
 
+# The lesson of a free sheet (one answered outside any assignment): the service's first lesson. An assignment's form
+# is its own lesson's, read from the lesson's declaration (rubric.lesson) as everything below is.
 LESSON = typing.get_args(PredictionSheet.model_fields["lesson"].annotation)[0]
-# The configs a student edits in the form (the rest travel in the YAML only): each starts from its rule's baseline.
-FORM_CONFIGS = ("table_exercise", "extension")
+
+
+def form_configs(book: Rubric) -> tuple[str, ...]:
+    """The configs a student edits in the form (the rest travel in the YAML only): each starts from its rule's
+    baseline. Those every whole sheet of the rubric's lesson submits."""
+    return lesson(book.lesson).form_configs()
 # Config fields that are no physics a student chooses: the case kind, and staff-only or evidence switches.
 HIDDEN_CONFIG_FIELDS = ("kind", "backend", "render")
 YAML_MAX_DEPTH = 32
@@ -143,8 +149,9 @@ def item_forms(book: Rubric, item_ids: list[str], variant: Variant | None = None
         item = book.item(item_id)
         return item.question if variant is None else texts.item_question(item, variant, locale)
 
+    answers = lesson(book.lesson).answers_model()
     return [ItemForm(i, question(i), book.item(i).part,
-                     tuple(answer_inputs(Answers.model_fields[i].annotation, f"answers.{i}")), variant is not None)
+                     tuple(answer_inputs(answers.model_fields[i].annotation, f"answers.{i}")), variant is not None)
             for i in item_ids]
 
 
@@ -156,7 +163,10 @@ def answer_label(label: str, variant: Variant | None, locale: str) -> str:
 # --- configs ----------------------------------------------------------------------------------------------------------
 
 def config_baseline(book: Rubric, role: str, variant: Variant | None = None):
-    """The lesson case a config role's form starts from: its one-factor rule's baseline, the variant's when given."""
+    """The lesson case a config role's form starts from: its one-factor rule's baseline, the variant's when given (a
+    variant is a pool's, and pools are of the lesson with a variant space)."""
+    if variant is None:
+        return lesson(book.lesson).cases[book.configs[role].baseline]
     return role_baseline(role, book, variant)
 
 
@@ -293,7 +303,8 @@ def sheet_from_form(form, *, items: list[ItemForm], book: Rubric | None, previou
     """The sheet the form holds, in the API's shape. An optional field is written when it differs from its default or
     the draft already had it, so a sheet imported from YAML comes back out as it went in. `variant`: the student's,
     whose baseline the config editor showed."""
-    sheet: dict[str, Any] = {"lesson": LESSON, "student": (form.get("student") or "").strip()}
+    sheet: dict[str, Any] = {"lesson": book.lesson if book is not None else LESSON,
+                             "student": (form.get("student") or "").strip()}
     for item in items:
         for field in item.inputs:
             given, value = _answer(form, field)
@@ -313,8 +324,9 @@ def sheet_from_form(form, *, items: list[ItemForm], book: Rubric | None, previou
 
 def _configs_from_form(form, book: Rubric, previous: dict, variant: Variant | None = None) -> dict:
     before = previous.get("configs") if isinstance(previous.get("configs"), dict) else {}
-    configs = {role: spec for role, spec in before.items() if role not in FORM_CONFIGS}  # YAML-only roles travel on
-    for role in FORM_CONFIGS:
+    edited = form_configs(book)
+    configs = {role: spec for role, spec in before.items() if role not in edited}  # YAML-only roles travel on
+    for role in edited:
         # A field left out of a config takes the case schema's default, which is the lesson's shipped value: so the
         # fields written are those that differ from the shipped baseline, under a variant too (its cube edge, say,
         # is written; a field put back to the shipped value is left out and reads as that value).
@@ -345,7 +357,7 @@ def form_state(sheet: dict, items: list[ItemForm], book: Rubric | None, variant:
         for field in item.inputs:
             values |= _shown(field, _get(sheet, field.name))
     if book is not None:
-        for role in FORM_CONFIGS:
+        for role in form_configs(book):
             values |= {k: _text(v) for k, v in config_values(book, role, sheet, variant).items()}
     return values
 
@@ -430,11 +442,12 @@ def config_checks(*, session: Session, sheet: dict, part: str, book: Rubric, var
     """The one-factor verdict the grader will apply (rubric.one_factor_findings) on the sheet's configs, against the
     baselines of `variant` (the student's) when given, whatever the answers hold yet, with the items each broken config
     would void where that can be told; and the configs' own errors."""
+    declared = lesson(book.lesson)
     try:
-        configs = Configs.model_validate(sheet.get("configs") or {})
+        configs = declared.configs_model().model_validate(sheet.get("configs") or {})
     except ValidationError as exc:
         return [], field_errors(describe_errors(exc), prefix="sheet.configs")
-    probe = PredictionSheet.model_construct(lesson=LESSON, student="", answers=None, configs=configs)
+    probe = declared.sheet_model.model_construct(lesson=book.lesson, student="", answers=None, configs=configs)
     findings = one_factor_findings(probe, book, variant)
     voids = _voided(session, sheet, part, book, variant) if any(not f.ok for f in findings.values()) else {}
     return [ConfigCheck(role=role, baseline=f.baseline, may_change=f.may_change, changes=f.changes,
@@ -452,15 +465,15 @@ def _voided(session: Session, sheet: dict, part: str, book: Rubric, variant: Var
         parsed = sheets.parse_sheet(sheet, part)
     except ValidationError:
         return {}
-    results = _lesson_results(session, variant)
+    results = _lesson_results(session, lesson(book.lesson), variant)
     return _voids_of(parsed, results, book, variant) if results is not None else {}
 
 
-def _lesson_results(session: Session, variant: Variant | None = None) -> dict | None:
+def _lesson_results(session: Session, declared: Lesson, variant: Variant | None = None) -> dict | None:
     """The lesson's own cases as stored (their results by name), under `variant` when given (its pool measured them),
     or None while one was never measured."""
     results = {}
-    for spec in lesson_run_specs(variant):
+    for spec in declared.lesson_run_specs(variant):
         name = spec.name
         inputs = content_key.key_inputs(spec.model_dump(mode="json", exclude_computed_fields=True),
                                         backend=spec.backend, precision=spec.precision)
@@ -496,11 +509,11 @@ def held_voids(*, session: Session, sheet: dict, part: str, book: Rubric, varian
         sheets.parse_sheet(sheet, part)
     except ValidationError:
         return {}
-    results = _lesson_results(session, variant)
+    results = _lesson_results(session, lesson(book.lesson), variant)
     if results is None:
         return {}
     out = {}
-    for role in FORM_CONFIGS:
+    for role in form_configs(book):
         own = sheet["configs"].get(role)
         if not isinstance(own, dict) or may_change(book, role, "seed"):
             continue

@@ -7,7 +7,7 @@ from typing import Any
 
 import rubric
 from grader.services.errors import Invalid
-from rubric.sheet import CHECKPOINT_IDS, answered
+from rubric import lesson as lessons
 
 # The caps every sheet (a submission's, a draft's, an imported YAML's) is held to before anything walks it. The largest
 # sheet the lesson can take is well inside them (the reference sheet: 120 values, 26 keys in one mapping, 5 levels,
@@ -86,4 +86,4 @@ def cases_to_run(sheet, book, variant=None) -> list:
 def checkpoints_only(sheet) -> bool:
     """A sheet answering concept checkpoints alone: it needs only the lesson's own cases, never a config of its own."""
 
-    return set(answered(sheet)) <= set(CHECKPOINT_IDS)
+    return lessons.checkpoints_only(sheet)

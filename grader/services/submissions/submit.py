@@ -70,6 +70,10 @@ def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id
     # which is also what staff submitting there work on (as their form shows), never a variant taken from the pool.
     variant = (student_variants.variant_for(session=session, assignment=assignment, student=user)
                if assignment is not None and access.is_student(user) else None)
+    if assignment is not None and (not isinstance(sheet, dict) or sheet.get("lesson") != assignment.lesson):
+        # first: a sheet of another lesson is refused for that, not for every answer its lesson's model lacks
+        raise Invalid("invalid sheet", [{"field": "sheet.lesson",
+                                         "rule": f"assignment {assignment.id} is for lesson {assignment.lesson}"}])
     try:
         parsed = sheets.parse_sheet(sheet, assignment.part if assignment else "sheet")
         book = course_rubric(session, user.course_id, parsed.lesson)
@@ -81,9 +85,6 @@ def submit(*, session: Session, user: User, sheet: dict[str, Any], assignment_id
         _refuse_staff_powers(parsed, backend=backend, force_rerun=force_rerun)
     if backend is not None:
         specs = [with_backend(spec, backend=backend) for spec in specs]
-    if assignment is not None and parsed.lesson != assignment.lesson:
-        raise Invalid("invalid sheet", [{"field": "sheet.lesson",
-                                         "rule": f"assignment {assignment.id} is for lesson {assignment.lesson}"}])
     submission = create_submission(session=session, student=user, lesson=parsed.lesson, sheet=sheet, specs=specs,
                                    force_rerun=force_rerun)
     if assignment is not None:

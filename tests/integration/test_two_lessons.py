@@ -1,0 +1,144 @@
+"""A course runs two lessons (issue 45): an instructor creates an L02 and an L03 assignment in one course, a student
+submits each through the API, and each is graded by its own lesson on its own real Genesis runs, with its own lab
+check; the course's dashboard and exports carry both. Nothing outside lessons/l02 names L02."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import httpx
+import pytest
+import yaml
+
+from rubric import load_rubric
+from tests.factories import reference_sheet
+from tests.integration.helpers import SHOTS, WAIT_LIMIT_S, at, case_runs, events, signed_in, wait_until
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+L02_YAML = Path(__file__).resolve().parents[2] / "examples" / "l02" / "reference.yaml"
+L02_REFERENCE = yaml.safe_load(L02_YAML.read_text())
+COURSE = "l03-test"
+
+
+def _assignment(stack, lesson: str, part: str) -> int:
+    made = httpx.post(f"{stack.url}/v1/courses/{COURSE}/assignments", headers=_auth(stack, "prof"), json={
+        "title": f"{lesson} {part}", "lesson": lesson, "part": part, "open_at": at(days=-1), "due_at": at(days=30),
+        "hard_close_at": at(days=31)})
+    assert made.status_code == 201, made.text
+    assert made.json()["lesson"] == lesson
+    return made.json()["id"]
+
+
+def _auth(stack, who: str) -> dict:
+    return {"Authorization": f"Bearer {stack.tokens[who]}"}
+
+
+@pytest.fixture(scope="module")
+def assignments(stack) -> dict[str, int]:
+    return {"L02": _assignment(stack, "L02", "sheet"), "L03": _assignment(stack, "L03", "checkpoints")}
+
+
+def test_an_assignment_of_a_lesson_not_installed_is_refused_naming_the_installed_ones(stack):
+    made = httpx.post(f"{stack.url}/v1/courses/{COURSE}/assignments", headers=_auth(stack, "prof"), json={
+        "title": "L09", "lesson": "L09", "open_at": at(days=-1), "due_at": at(days=30), "hard_close_at": at(days=31)})
+    assert made.status_code == 422, made.text
+    assert "'L09' is not an installed lesson (installed: L02, L03)" in made.text
+
+
+def test_a_sheet_of_the_other_lesson_is_refused_by_an_assignment_and_nothing_is_stored(stack, assignments):
+    client = stack.client("bob")
+    before = len(client.http.get("/submissions").json())
+    refused = client.http.post("/submissions", json={"sheet": copy.deepcopy(L02_REFERENCE),
+                                                     "assignment_id": assignments["L03"]})
+    assert refused.status_code == 422, refused.text
+    assert "is for lesson L03" in refused.text
+    assert len(client.http.get("/submissions").json()) == before
+
+
+def test_one_student_is_graded_on_each_lesson_by_its_own_runs_and_lab_check(stack, assignments):
+    client = stack.client("alice")
+    l02 = client.submit(copy.deepcopy(L02_REFERENCE), assignment_id=assignments["L02"])
+    checkpoints = reference_sheet()
+    checkpoints["answers"] = {k: v for k, v in checkpoints["answers"].items() if k.startswith("C")}
+    checkpoints.pop("configs")
+    l03 = client.submit(checkpoints, assignment_id=assignments["L03"])
+    finals = {lesson: client.wait(made["id"], poll_s=0.5, timeout_s=WAIT_LIMIT_S)
+              for lesson, made in (("L02", l02), ("L03", l03))}
+    assert {lesson: final["status"] for lesson, final in finals.items()} == {"L02": "graded", "L03": "graded"}, finals
+
+    # The lab check is added to the grade once evaluated (worker.grading.complete_grade); a failed one says so.
+    for made in (l02, l03):
+        wait_until(lambda: client.grade(made["id"])["check"] is not None
+                   or any("lab check failed" in (e.detail or "") for e in events(stack, made["id"])),
+                   f"the lab check of submission {made['id']}")
+    grade = client.grade(l02["id"])
+    book = load_rubric("L02")
+    assert (grade["rubric_lesson"], grade["rubric_version"], grade["rubric_hash"]) == ("L02", "1", book.content_hash)
+    assert [(i["id"], i["verdict"]) for i in grade["items"]] == [(item.id, "credit") for item in book.items]
+    assert grade["total"] == grade["max_total"] == 22
+    assert grade["check"]["verdict_line"] == "L02 CHECK: PASSED", grade["check"]
+    runs = {run.name: run for run in case_runs(stack, l02["id"])}
+    assert sorted(runs) == ["S1", "S2", "sheet.exercise"]
+    assert all(run.status == "done" and run.spec["kind"] == "drop" and run.actual_backend == "cpu"
+               for run in runs.values()), runs
+    assert runs["sheet.exercise"].spec["dt"] == 0.004 and runs["sheet.exercise"].metrics["samples"] == 150
+
+    grade = client.grade(l03["id"])
+    assert grade["rubric_lesson"] == "L03" and [i["id"] for i in grade["items"]] == [f"C{n}" for n in range(1, 9)]
+    assert grade["check"]["verdict_line"] == "L03 CHECK: PASSED", grade["check"]
+    assert {run.spec["kind"] for run in case_runs(stack, l03["id"])} == {"contact", "friction"}
+
+    # The instructor's course views carry both lessons' grades.
+    csv_text = httpx.get(f"{stack.url}/v1/courses/{COURSE}/grades.csv", headers=_auth(stack, "prof")).text
+    rows = [line for line in csv_text.splitlines() if f",{l02['id']}," in f",{line}," or f",{l03['id']}," in f",{line},"]
+    assert len(rows) == 2 and any("L02" in row for row in rows) and any("L03" in row for row in rows), csv_text
+    dashboard = httpx.get(f"{stack.url}/v1/courses/{COURSE}/dashboard", headers=_auth(stack, "prof"))
+    assert dashboard.status_code == 200, dashboard.text
+    exported = httpx.get(f"{stack.url}/v1/submissions/{l02['id']}/gradescope.json", headers=_auth(stack, "prof"))
+    assert exported.status_code == 200 and exported.json()["score"] == 22, exported.text
+
+    # The student's report page and its data: the lesson's own check line, and every sampled series of its runs.
+    page = httpx.get(f"{stack.url}/submissions/{l02['id']}", headers=_auth(stack, "alice"))
+    assert page.status_code == 200 and "L02 CHECK: PASSED" in page.text and "L03 CHECK" not in page.text
+    series = httpx.get(f"{stack.url}/v1/submissions/{l02['id']}/series", headers=_auth(stack, "alice"))
+    assert series.status_code == 200, series.text
+    runs = {run["name"]: run for run in series.json()["runs"]}
+    assert set(runs["S1"]["series"]) == {"t", "z", "vz", "contact_count"} and len(runs["S2"]["series"]["z"]) == 120
+    assert runs["S1"]["metrics"]["first_contact_t"] == pytest.approx(runs["S1"]["series"]["t"][
+        runs["S1"]["series"]["contact_count"].index(next(c for c in runs["S1"]["series"]["contact_count"] if c)) ])
+
+
+def test_a_student_answers_l02_from_the_page_in_chinese_and_reads_its_report(browser, stack, assignments):
+    """The L02 assignment's page, read in Chinese: its questions, a YAML imported, Check by L02's rule, submitted and
+    graded on real runs; the report shows L02's check line and its conditions in Chinese."""
+    page = signed_in(browser, stack, "bob")
+    page.set_extra_http_headers({"Accept-Language": "zh-CN,zh;q=0.9"})
+    page.goto(f"{stack.url}/assignments/{assignments['L02']}/sheet")
+    assert page.locator("html").get_attribute("lang") == "zh"
+    assert "盒子何时首次接触地面" in page.inner_text("#item-P3")
+    page.set_input_files("#yaml-file", str(L02_YAML))
+    page.click("#yaml button[type=submit]")
+    page.wait_for_selector("#notice")
+    assert page.is_checked("input[name='answers.P4.lower'][value='S1']")
+    page.fill("[id='f-configs.exercise.substeps']", "4")  # the exercise may change its timing: one factor still
+    page.fill("[id='f-answers.E1.internal_updates']", "600")
+    page.click("button[value=check]")
+    page.wait_for_selector("#one-factor")
+    assert "one-factor violation" not in page.inner_text("#one-factor")
+    page.screenshot(path=SHOTS / "l02_sheet_form_zh.png", full_page=True)
+    page.click("button[value=submit]")
+    page.click("#confirm-submit")
+    page.wait_for_url(f"{stack.url}/submissions/*/progress")
+    submission = int(page.url.split("/")[-2])
+    client = stack.client("bob")
+    final = client.wait(submission, poll_s=0.5, timeout_s=WAIT_LIMIT_S)
+    assert final["status"] == "graded", final
+    wait_until(lambda: client.grade(submission)["check"] is not None, "the lab check")
+    grade = client.grade(submission)
+    assert grade["total"] == grade["max_total"] == 22, [(i["id"], i["verdict"]) for i in grade["items"]]
+    page.goto(f"{stack.url}/submissions/{submission}")
+    page.wait_for_selector("#lab-check")
+    assert page.locator("#check-line code").inner_text() == "L02 CHECK: PASSED"
+    assert "盒子在自由落体预测的时刻接触地面" in page.inner_text("#lab-check")
+    page.screenshot(path=SHOTS / "l02_report_zh.png", full_page=True)
