@@ -104,3 +104,33 @@ def test_a_sign_in_link_gives_the_notebook_a_token_once(api, aid):
     again = api.client.post(f"/v1/sign-in-links/{secret}/token")
     assert again.status_code == 404 and "used" in again.json()["detail"], again.text
     assert api.client.post("/v1/sign-in-links/not-a-link/token").status_code == 404
+
+
+def test_a_student_on_a_variant_gets_their_own_lab_words_and_check(api):
+    """At an assignment with a variant pool (built as tests/grader/pages/test_variant_pages.py builds it), the
+    client's sheet is the student's own lab (the course page's words, their numbers in the questions) and its Check
+    compares their configs with their own baseline, as the form does."""
+    import rubric
+    from rubric.variants import texts
+    from tests.grader.pages.test_variant_pages import drawn, pooled_assignment, variant_of, words
+
+    aid = pooled_assignment(api)
+    got = api.client.get(f"/v1/assignments/{aid}/sheet", headers=api.as_("alice"))
+    assert got.status_code == 200, got.text
+    mine = drawn()[variant_of(aid, "alice")]
+    assert got.json()["lab"] == texts.parameter_summary(mine, "en")
+    page = api.client.get(f"/assignments/{aid}/sheet", headers=api.as_("alice"))
+    assert words(got.json()["lab"]) in page.text
+    questions = {i["id"]: i["question"] for i in got.json()["items"]}
+    assert questions["A1"] == texts.item_question(rubric.load_rubric("L03").item("A1"), mine, "en")
+    sheet = reference_sheet()
+    checked = api.client.post(f"/v1/assignments/{aid}/sheet/check", headers=api.as_("alice"), json={"sheet": sheet})
+    assert checked.status_code == 200, checked.text
+    with new_session() as session:
+        own, _ = form_logic.config_checks(session=session, sheet=sheet, part="sheet", variant=mine,
+                                          book=course_rubric(session, session.scalar(select(Course.id)), "L03"))
+        shipped, _ = form_logic.config_checks(session=session, sheet=sheet, part="sheet",
+                                              book=course_rubric(session, session.scalar(select(Course.id)), "L03"))
+    assert [(c["role"], c["baseline"], c["violations"]) for c in checked.json()["configs"]] == \
+        [(c.role, c.baseline, [v.field for v in c.violations]) for c in own]
+    assert [c.violations for c in own] != [c.violations for c in shipped]  # the variant's baseline is not the lesson's
