@@ -11,7 +11,7 @@ from grader.i18n import N_
 from grader.core.models import Assignment, User
 from grader.pages.submissions import sheet_form as page
 from grader.services.errors import Invalid
-from grader.services.submissions import drafts, notebooks
+from grader.services.submissions import drafts, notebooks, sheets
 from grader.services.submissions import sheet_form as form_logic
 from grader.web.deps import SessionDep
 from grader.web.errors import status_of, with_retry_after
@@ -25,6 +25,7 @@ def _sheet_of(session, user: User, assignment: Assignment | None, data: bytes) -
     part, lesson = page._part_and_lesson(assignment)
     notebook = notebooks.read(data)
     sheet = notebook.sheet(student=user.name, lesson=lesson)
+    sheets.check_size(sheet)  # the sheet's caps before its rules, as every door
     if problems := form_logic.problems(sheet, part):
         raise notebooks.with_cells(Invalid(notebooks.DETAIL, problems), notebook)
     return sheet

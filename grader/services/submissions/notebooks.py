@@ -103,7 +103,10 @@ def literal_of(source: str, cell: Cell) -> Any:
     try:
         tree = ast.parse(source)
     except SyntaxError as exc:
-        raise _refuse(f"{cell.words}, line {exc.lineno}: not Python: {exc.msg}", where) from None
+        line = f", line {exc.lineno}" if exc.lineno else ""
+        raise _refuse(f"{cell.words}{line}: not Python: {exc.msg}", where) from None
+    except (ValueError, RecursionError, MemoryError):  # a NUL byte; nesting deeper than the parser goes
+        raise _refuse(f"{cell.words}: not Python this service reads (a NUL byte, or nested too deep)", where) from None
     statements = tree.body
     if len(statements) != 1 or not isinstance(statements[0], ast.Assign) or len(statements[0].targets) != 1 \
             or not isinstance(statements[0].targets[0], ast.Name):

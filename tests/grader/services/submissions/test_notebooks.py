@@ -131,3 +131,12 @@ def test_a_sheet_error_names_the_cell_it_comes_from():
         {"field": "sheet.answers.A2.direction",
          "rule": f"cell {number} (answer:A2): Input should be 'decrease', 'increase' or 'unchanged'"},
         {"field": "assignment_id", "rule": "closed"}]
+
+
+@pytest.mark.parametrize("source", ["A2 = {'direction': 'de\x00crease'}", "A2 = " + "[" * 300 + "]" * 300])
+def test_a_cell_the_parser_cannot_take_is_refused_naming_it(source):
+    nb = filled(reference_sheet())
+    cell = next(c for c in nb["cells"] if "answer:A2" in c["metadata"].get("tags", []))
+    cell["source"] = source
+    errors = refusal(as_bytes(nb))
+    assert "(answer:A2)" in errors[0]["rule"] and errors[0]["field"].startswith("notebook.cells."), errors
