@@ -1,15 +1,17 @@
-"""The images build and the real docker-compose.yml grades sheets, with podman (issue 36, item 3).
+"""The images build and the real docker-compose.yml grades sheets, with podman (issue 36, item 3; issue 46).
 
-docker/ci/build-images.sh builds the API and CPU worker images from docker/*.Dockerfile (on a Debian base made by
-debootstrap, the torch wheel from pip's find-links) and the Debian-made stand-ins for postgres, redis and nginx; then
-`podman-compose -f docker-compose.yml -f docker/compose.ci.yml` brings up the stack under a project name of its own,
-the proxy on a free loopback port with a self-signed certificate made here (a third compose file of the run's own).
-Through the TLS proxy only: the reference sheet is graded 30 / 30 and its report page and series load; two CPU
-workers grade a class of 10 sheets between them; a worker container killed mid-case (its main process SIGKILLed) is
-restarted by its restart policy, its run measured again and the sheet graded once; PostgreSQL restarted loses nothing
-and the API answers again by itself. The API and worker containers share no volume and the API image holds no torch.
-Nothing of the project is left afterwards (`down -v`: containers, network, volumes); the built images stay as the
-layer cache of the next run.
+The operator's guide's walked block (docs/operator.md, `Guide`) is run line by line, in order, with a project name of
+its own and a third compose file (the proxy on a free loopback port with a self-signed certificate made here): its
+packages installed, docker/ci/build-images.sh (the API and CPU worker images from docker/*.Dockerfile on a Debian base
+made by debootstrap, the torch wheel from pip's find-links, and Debian-made stand-ins for postgres, redis and nginx),
+`up -d`, every service healthy by its own check (the reconciler's last pass, the workers' ping and warm gate), a
+token from a one-off API container, scale 3 -> 1, and `down` twice. Between its lines, through the TLS proxy only: the
+reference sheet is graded 30 / 30 and its report page and series load; two CPU workers grade a class of 10 sheets
+between them; a worker container killed mid-case (its main process SIGKILLed) is restarted by its restart policy, its
+run measured again within 60 s and the sheet graded once; a worker container removed mid-case has its run re-queued by
+its lapsed heartbeat and measured on the other within 60 s; PostgreSQL restarted loses nothing and the API answers
+again by itself. The API and worker containers share no volume and the API image holds no torch. Nothing of the
+project is left afterwards (containers, network, volumes); the built images stay as the layer cache of the next run.
 
 Runs under CI=true (a missing podman, podman-compose, debootstrap or openssl then fails it) or CONTAINER_TEST=1;
 skipped otherwise. It is one test so that pytest-xdist cannot hand its parts to workers that would each build a
@@ -22,6 +24,7 @@ import json
 import os
 import re
 import secrets
+import shlex
 import shutil
 import signal
 import subprocess
@@ -50,6 +53,10 @@ KILL_ATTEMPTS = 3  # forced sheets tried for a kill that lands mid-case (see the
 LONG_CASE_SUBSTEPS = 10  # the killed case: 1.5 s at dt=0.002, 750 steps of 10+ substeps (seconds on a CPU)
 EXTENSION_RUN = SHEET_CASE_PREFIX + "extension"  # the name a sheet's own extension case is stored under
 COURSE = "l03-ci"
+GUIDE = ROOT / "docs" / "operator.md"
+GUIDE_MARK = "<!-- walked: tests/integration/test_containers.py runs each line of the next block (Guide) -->"
+GUIDE_COMPOSE = "podman-compose -f docker-compose.yml -f docker/compose.ci.yml"  # how the guide's lines call compose
+GUIDE_PROJECT = "l03-grader"  # docker-compose.yml's name, which the guide's lines use for container names and labels
 
 
 def _requested() -> bool:
@@ -74,7 +81,8 @@ def _require_tools() -> None:
 
 def _run(args: list[str], *, env: dict | None = None, timeout: float = 600, check: bool = True,
          cwd: Path = ROOT) -> subprocess.CompletedProcess:
-    result = subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
+    result = subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout,
+                            stdin=subprocess.DEVNULL)
     if check and result.returncode != 0:
         raise AssertionError(f"{' '.join(args)} exited {result.returncode}:\n{result.stdout[-4000:]}\n"
                              f"{result.stderr[-4000:]}")
@@ -106,6 +114,33 @@ def _wait(predicate, what: str, limit_s: float = WAIT_LIMIT_S, poll_s: float = 1
     return value
 
 
+def _guide_lines() -> list[str]:
+    """The commands of the operator's guide's walked block (docs/operator.md), comments dropped, in order."""
+    text = GUIDE.read_text()
+    assert GUIDE_MARK in text, f"{GUIDE} lost the block this test walks ({GUIDE_MARK})"
+    block = text.split(GUIDE_MARK, 1)[1].split("```", 2)[1]
+    return [line for raw in block.splitlines() if (line := re.sub(r"\s+#\s.*$", "", raw).strip())]
+
+
+@dataclass
+class Guide:
+    """The operator's guide's block, walked in order: each step names a word of the line it expects next, so that a
+    line added, dropped or moved in the guide fails the walk instead of going untried."""
+
+    lines: list[str] = field(default_factory=_guide_lines)
+    at: int = 0
+
+    def next(self, expect: str) -> str:
+        assert self.at < len(self.lines), f"the guide has no line left; the walk expected one with {expect!r}"
+        line = self.lines[self.at]
+        assert expect in line, f"the guide's line {self.at + 1} is {line!r}; the walk expected one with {expect!r}"
+        self.at += 1
+        return line
+
+    def left(self) -> list[str]:
+        return self.lines[self.at:]
+
+
 @dataclass
 class Deployment:
     """The compose project: its name, environment, proxy URL and certificate, and the tokens made in it."""
@@ -116,10 +151,31 @@ class Deployment:
     ca: Path
     proxy_file: Path  # the third compose file: the proxy's port and certificate of this run
     tokens: dict[str, str] = field(default_factory=dict)
+    guide: Guide = field(default_factory=Guide)
+
+    def shell(self, line: str, *, timeout: float = 900, check: bool = True,
+              **placeholders: str) -> subprocess.CompletedProcess:
+        """One of the guide's lines, as an operator types it, with this run's project, proxy file and placeholders."""
+        compose = [*_podman_compose(), "-p", self.project, *(a for f in (*COMPOSE_FILES, str(self.proxy_file))
+                                                             for a in ("-f", f))]
+        assert "podman-compose" not in line or line.startswith(GUIDE_COMPOSE), \
+            f"the guide calls podman-compose other than as {GUIDE_COMPOSE!r}: {line!r}"
+        command = line.replace(GUIDE_COMPOSE, shlex.join(compose))
+        command = re.sub(rf"\b{GUIDE_PROJECT}(?=[_\s]|$)", self.project, command)
+        for name, value in placeholders.items():
+            command = re.sub(rf"\b{name}\b", value, command)
+        return _run(["sh", "-c", command], env=self.env, timeout=timeout, check=check)
+
+    def walk(self, expect: str, *, timeout: float = 900, **placeholders: str) -> subprocess.CompletedProcess:
+        """The guide's next line, which must hold `expect`, run; it must succeed."""
+        started = time.monotonic()
+        result = self.shell(self.guide.next(expect), timeout=timeout, **placeholders)
+        print(f"guide line {self.guide.at} ({expect}): {time.monotonic() - started:.1f} s")
+        return result
 
     def compose(self, *args: str, timeout: float = 900, check: bool = True) -> subprocess.CompletedProcess:
         files = [a for f in (*COMPOSE_FILES, str(self.proxy_file)) for a in ("-f", f)]
-        return _run([*_podman_compose(), "--in-pod", "false", "-p", self.project, *files, *args], env=self.env,
+        return _run([*_podman_compose(), "-p", self.project, *files, *args], env=self.env,
                     timeout=timeout, check=check)
 
     def podman(self, *args: str, timeout: float = 300, check: bool = True) -> subprocess.CompletedProcess:
@@ -136,13 +192,9 @@ class Deployment:
         (name,) = self.containers(service)
         return name
 
-    def warm(self, container: str) -> bool:
-        """The worker's warm case process is up (its log says so; worker.warm_process): it now takes cases."""
-        logs = self.podman("logs", container, check=False)
-        return "case slots warm after" in logs.stdout + logs.stderr
-
     def healthy(self, container: str) -> bool:
-        """Runs the container's own health check now (podman 4.3 without systemd runs none by itself)."""
+        """Runs the container's own health check now (podman 4.3 without systemd runs none by itself); a worker's
+        passes once it takes cases, every case slot warm (grader worker --healthy)."""
         return self.podman("healthcheck", "run", container, check=False, timeout=60).returncode == 0
 
     def inspect(self, container: str) -> dict:
@@ -223,10 +275,6 @@ def _sheet(table_friction: float) -> dict:
 @pytest.fixture(scope="module")
 def stack(tmp_path_factory):
     _require_tools()
-    env = {**os.environ, "CONTAINERS_CONF": str(CONTAINERS_CONF)}
-    started = time.monotonic()
-    built = _run([str(ROOT / "docker" / "ci" / "build-images.sh")], env=env, timeout=BUILD_LIMIT_S)
-    print(f"\nimages built in {time.monotonic() - started:.0f} s:\n{built.stdout}")
     tls = tmp_path_factory.mktemp("tls")
     ca = _certificate(tls)
     port = free_port()
@@ -234,23 +282,36 @@ def stack(tmp_path_factory):
     proxy_file = tmp_path_factory.mktemp("compose") / "proxy.yml"
     proxy_file.write_text(f"services:\n  proxy:\n    ports: !override [\"127.0.0.1:{port}:443\"]\n"
                           f"    volumes: [\"{tls}:/etc/nginx/tls:ro\"]\n")
-    env |= {"POSTGRES_PASSWORD": secrets.token_hex(16)}
-    deployment = Deployment(f"l03ci{secrets.token_hex(4)}", env, f"https://127.0.0.1:{port}", ca, proxy_file)
+    deployment = Deployment(f"l03ci{secrets.token_hex(4)}", dict(os.environ), f"https://127.0.0.1:{port}", ca,
+                            proxy_file)
+    # The operator's guide from its first line: the packages it installs are installed, the variables it exports set.
+    packages = shlex.split(deployment.guide.next("apt-get install"))[2:]
+    listed = _run(["dpkg-query", "-W", "-f", "${Package} ${Status}\n", *packages], check=False).stdout
+    assert sorted(line.split()[0] for line in listed.splitlines() if line.endswith("install ok installed")) == \
+        sorted(packages), listed
+    exported = dict(word.split("=", 1) for word in shlex.split(deployment.guide.next("export"))[1:])
+    assert sorted(exported) == ["CONTAINERS_CONF", "POSTGRES_PASSWORD"], exported
+    deployment.env |= {"CONTAINERS_CONF": exported["CONTAINERS_CONF"].replace("$PWD", str(ROOT)),
+                       "POSTGRES_PASSWORD": secrets.token_hex(16)}
+    assert Path(deployment.env["CONTAINERS_CONF"]) == CONTAINERS_CONF
     try:
-        up = time.monotonic()
-        deployment.compose("up", "-d")
-        print(f"podman-compose up returned in {time.monotonic() - up:.0f} s")
+        started = time.monotonic()
+        built = deployment.walk("build-images.sh", timeout=BUILD_LIMIT_S)
+        print(f"\nimages built in {time.monotonic() - started:.0f} s:\n{built.stdout}")
+        deployment.walk("up -d --scale worker-cpu=2")
         yield deployment
     finally:
         for service in ("api", "worker-cpu", "proxy", "postgres"):
             logs = deployment.compose("logs", "--tail", "40", service, check=False)
             print(f"--- {service} (last lines)\n{logs.stdout[-3000:]}{logs.stderr[-1000:]}")
-        # The operator's guide's commands (docs/operator.md): podman-compose 1.6's plain `down` knows only the
-        # containers its files name, not the replicas of `--scale`, which then keep the network and volumes;
-        # `--remove-orphans` removes them, but after the named services, so postgres and redis (which the replicas
-        # depend on) are refused the first time and go with a second `down` (issue 46).
-        for _ in range(2):
-            deployment.compose("down", "-v", "--remove-orphans", "-t", "5", timeout=600, check=False)
+        # The operator's guide's last lines (docs/operator.md), its `down`s, whatever the test reached: podman-compose
+        # 1.6's plain `down` knows only the containers its files name, not the replicas of `--scale`, which then keep
+        # the network and volumes; `--remove-orphans` removes them, but after the named services, so postgres and redis
+        # (which the replicas depend on) are refused the first time and go with a second `down` (issue 46).
+        downs = [line for line in deployment.guide.lines if " down " in line]
+        assert len(downs) == 2 and deployment.guide.lines[-2:] == downs, deployment.guide.lines
+        for line in downs:
+            deployment.shell(line, timeout=600, check=False)
 
         def leftovers():
             networks = deployment.podman("network", "ls", "-q", "--filter", f"label=io.podman.compose.project="
@@ -267,18 +328,29 @@ def stack(tmp_path_factory):
 
 
 def test_the_compose_stack_grades_through_tls_scales_recovers_and_keeps_its_data(stack):
-    # Started and healthy: the API through its own health check (its start-up includes the migrations), the proxy.
+    # Started and healthy: the API through its own health check (its start-up includes the migrations), then every
+    # service of the stack by its own check, as the guide's line runs them (the reconciler's last pass, the workers'
+    # ping and warm gate; issue 46); the proxy through TLS.
     api = stack.container("api")
     _wait(lambda: stack.healthy(api), "the API's health check", poll_s=0.5)
     healthy_at = datetime.now(_started_at(stack, api).tzinfo)
     print(f"API container start to healthy: {(healthy_at - _started_at(stack, api)).total_seconds():.1f} s")
+    worker = stack.containers("worker-cpu")[0]
+    warming = stack.podman("exec", worker, "grader", "worker", "--healthy", check=False)
+    print(f"the worker's own health check once the API is healthy: {(warming.stdout + warming.stderr).strip()}")
+    line = stack.guide.next("healthcheck run")
+    every = stack.containers()
+    assert {c.rsplit("_", 2)[-2] for c in every} == {"api", "proxy", "worker-cpu", "reconciler", "redis",
+                                                     "postgres"}, every
+    _wait(lambda: stack.shell(line, check=False).returncode == 0, f"every service healthy by the guide's line {line!r}",
+          poll_s=2)
+    print(f"every service healthy {(datetime.now(healthy_at.tzinfo) - _started_at(stack, api)).total_seconds():.0f} s "
+          f"after the API's start: {', '.join(every)}")
+    said = stack.podman("exec", worker, "grader", "worker", "--healthy").stdout.strip()
+    assert said.startswith("healthy: cpu-grade@") and "case slots warm, taking cases" in said, said
     _wait(stack.api_answers, "the API through the TLS proxy")
     with stack.http() as http:  # the proxy's TLS with the certificate made here; plain HTTP only redirects
         assert http.get("/v1/health").json()
-    worker = stack.container("worker-cpu")
-    _wait(lambda: stack.healthy(worker), "the worker's health check (celery inspect ping)")
-    # The reconciler's own health check (a pass finished within a minute), not the API image's HTTP one (issue 46).
-    _wait(lambda: stack.healthy(stack.container("reconciler")), "the reconciler's health check")
     sizes = {image: _image_size_mb(stack, image) for image in (API_IMAGE, WORKER_IMAGE)}
     print("image sizes: " + ", ".join(f"{image} {mb:.0f} MB" for image, mb in sizes.items()))
 
@@ -293,7 +365,9 @@ def test_the_compose_stack_grades_through_tls_scales_recovers_and_keeps_its_data
             assert not mounts[side] & mounts[worker_container], (side, worker_container, mounts)
 
     stack.token("alice", "student")
-    stack.token("prof", "instructor")
+    # The guide's token line: a one-off container of the API image, printing the token once.
+    made = stack.walk("run --rm --no-deps api grader admin token", COURSE=COURSE, NAME="prof")
+    stack.tokens["prof"] = made.stdout.split()[-1]
 
     # The reference sheet, graded through the proxy; its report page and every series it draws, too.
     started = time.monotonic()
@@ -314,12 +388,10 @@ def test_the_compose_stack_grades_through_tls_scales_recovers_and_keeps_its_data
         failed = {url: code for url in series if (code := page.get(url.replace("&amp;", "&")).status_code) != 200}
         assert not failed, failed
 
-    # Two CPU workers; a class of 10 sheets, each with a table friction of its own, graded between them.
-    stack.compose("up", "-d", "--no-recreate", "--scale", "worker-cpu=2")
+    # Two CPU workers (the guide's `up`), healthy so warm above; a class of 10 sheets, each with a table friction of
+    # its own, graded between them.
     workers = stack.containers("worker-cpu")
     assert len(workers) == 2, workers
-    for name in workers:  # the new worker warm before the class is sent, or the first may take every run
-        _wait(lambda name=name: stack.healthy(name) and stack.warm(name), f"{name} healthy and warm")
     hostnames = {stack.inspect(name)["Config"]["Hostname"]: name for name in workers}
     students = [f"s{i:02d}" for i in range(10)]
     for student in students:
@@ -382,6 +454,12 @@ def test_the_compose_stack_grades_through_tls_scales_recovers_and_keeps_its_data
     else:
         pytest.fail(f"no kill of {KILL_ATTEMPTS} landed in the middle of a case")
 
+    # The restarted container warm again (its health check passes once it takes cases), so that the next run has a
+    # worker to go to when its own is removed.
+    _wait(lambda: stack.healthy(container), f"{container} healthy again after its restart")
+    print(f"{container}: healthy (taking cases) again "
+          f"{(datetime.now(timezone.utc).replace(tzinfo=None) - killed_at).total_seconds():.0f} s after the kill")
+
     # A worker container removed mid-case (a host lost, `podman rm -f`): nothing restarts it and nothing of it answers;
     # its heartbeat in the broker lapses and the reconciler re-queues its run, for the other worker (issue 46).
     for attempt in range(1, KILL_ATTEMPTS + 1):
@@ -405,7 +483,7 @@ def test_the_compose_stack_grades_through_tls_scales_recovers_and_keeps_its_data
             workers = stack.containers("worker-cpu")
             hostnames = {stack.inspect(name)["Config"]["Hostname"]: name for name in workers}
             for name in workers:
-                _wait(lambda name=name: stack.healthy(name) and stack.warm(name), f"{name} healthy and warm")
+                _wait(lambda name=name: stack.healthy(name), f"{name} healthy (taking cases)")
             continue
         assert after[0] == "done" and int(after[1]) > tries and after[2] != holder, after
         detail = stack.sql(f"SELECT detail FROM events WHERE case_run_id = {victim} AND state = 'requeued' "
@@ -426,3 +504,13 @@ def test_the_compose_stack_grades_through_tls_scales_recovers_and_keeps_its_data
     late = _submit(stack, "alice", _sheet(0.45))
     _graded(stack, "alice", late)
     print(f"after PostgreSQL's restart: {len(before)} submissions kept, submission {late} graded")
+
+    # Scaled 3 -> 1 by the guide's lines: `up --scale` adds what is missing (the removed replica too), and the
+    # replicas go by name, highest first; the fixture's teardown then runs the guide's `down`s and fails on anything
+    # of the project left behind (issue 46).
+    stack.walk("--scale worker-cpu=3")
+    scaled = stack.containers("worker-cpu")
+    assert scaled == [f"{stack.project}_worker-cpu_{n}" for n in (1, 2, 3)], scaled
+    stack.walk("podman rm -f -i -t 900", timeout=300)
+    assert stack.containers("worker-cpu", every=True) == [f"{stack.project}_worker-cpu_1"], stack.containers(every=True)
+    assert stack.guide.left() == [line for line in stack.guide.lines if " down " in line], stack.guide.left()
