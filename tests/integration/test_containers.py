@@ -511,6 +511,15 @@ def test_the_compose_stack_grades_through_tls_scales_recovers_and_keeps_its_data
     stack.walk("--scale worker-cpu=3")
     scaled = stack.containers("worker-cpu")
     assert scaled == [f"{stack.project}_worker-cpu_{n}" for n in (1, 2, 3)], scaled
+    # Each replica's Celery started first (its "ready." line; the guide says why): a SIGTERM that reaches a worker in
+    # its first seconds is dropped (Celery is its container's PID 1, with no handler yet) and the stop then waits its
+    # whole -t, 900 s (a run that removed two replicas 7 s after `up` hung so).
+    def started(name: str) -> bool:
+        logs = stack.podman("logs", name, check=False)
+        return " ready." in logs.stdout + logs.stderr
+
+    for name in scaled:
+        _wait(lambda name=name: started(name), f"{name}'s Celery started")
     stack.walk("podman rm -f -i -t 900", timeout=300)
     assert stack.containers("worker-cpu", every=True) == [f"{stack.project}_worker-cpu_1"], stack.containers(every=True)
     assert stack.guide.left() == [line for line in stack.guide.lines if " down " in line], stack.guide.left()
