@@ -50,19 +50,27 @@ def grades_csv(reports: Sequence[tuple[str, GradeReport]], *,
     """
     if submissions is not None and len(submissions) != len(reports):
         raise ValueError(f"{len(submissions)} submissions for {len(reports)} reports")
+    # Reports of more than one lesson (a course teaching two): a `lesson` column first, and each item's column named
+    # with its lesson (`L02.C1`, `L03.C1`), since two lessons' items may share an id; one lesson's file is as it was.
+    mixed = len({report.lesson for _, report in reports}) > 1
+
+    def column(report: GradeReport, item_id: str) -> str:
+        return f"{report.lesson}.{item_id}" if mixed else item_id
+
     item_ids: list[str] = []
     for _, report in reports:
-        item_ids += [i.id for i in report.items if i.id not in item_ids]
+        item_ids += [c for i in report.items if (c := column(report, i.id)) not in item_ids]
     traced = ["submission_id", "submitted_at"] if submissions is not None else []
     varied = any(report.variant is not None for _, report in reports)
     fixed = [CSV_FIXED_COLUMNS[1], "variant", *CSV_FIXED_COLUMNS[2:]] if varied else list(CSV_FIXED_COLUMNS[1:])
-    rows = [[CSV_FIXED_COLUMNS[0], *traced, *fixed, *item_ids]]
+    rows = [[CSV_FIXED_COLUMNS[0], *traced, *(["lesson"] if mixed else []), *fixed, *item_ids]]
     for n, (student, report) in enumerate(reports):
-        scores = {i.id: ("" if i.verdict == "inconclusive" else _number(i.score)) for i in report.items}
+        scores = {column(report, i.id): ("" if i.verdict == "inconclusive" else _number(i.score)) for i in report.items}
         trace = [str(submissions[n][0]), submissions[n][1]] if submissions is not None else []
         variant = [report.variant or ""] if varied else []
-        rows.append([student, *trace, report.rubric_version, *variant, _number(report.total),
-                     _number(report.max_total), str(report.complete).lower(), *(scores.get(i, "") for i in item_ids)])
+        rows.append([student, *trace, *([report.lesson] if mixed else []), report.rubric_version, *variant,
+                     _number(report.total), _number(report.max_total), str(report.complete).lower(),
+                     *(scores.get(i, "") for i in item_ids)])
     return csv_text(rows)
 
 

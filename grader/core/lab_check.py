@@ -44,7 +44,7 @@ def submission_check(results: Mapping[str, CaseResult], *, artifacts_dir: Path, 
     outputs = output_location(lab.values(), artifacts_dir=Path(artifacts_dir))
     report = declared.evaluate_check(lab, outputs=outputs, rubric=rubric, variant=variant)
     # What a condition means in the service, for the conditions the lesson's check has (its runs' processes, its
-    # rendering, its outputs: L03's ids; a lesson without such a condition gets no note for it)
+    # rendering, its outputs; a lesson without such a condition gets no note for it)
     ids = {c.id for c in report.conditions}
     return report.outcome(notes={k: v for k, v in _service_notes(lab, reused or {}).items() if k in ids})
 

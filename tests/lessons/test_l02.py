@@ -113,3 +113,16 @@ def test_the_lab_check_passes_on_real_runs_and_fails_naming_what_is_missing(l02_
     failed = l02.evaluate_check({"S1": lab["S1"]}, outputs=outputs).outcome()
     assert not failed.passed
     assert failed.verdict_line.startswith("L02 CHECK: FAILED \u2014 S1 and S2 were built, stepped and observed")
+
+
+def test_a_course_file_of_two_lessons_names_each_item_with_its_lesson(reference, l02_measured):
+    from rubric.exports import grades_csv
+
+    l02 = grade_sheet(parse_sheet(reference), l02_measured)
+    l03 = l02.model_copy(update={"lesson": "L03", "items": [l02.items[0]]})  # another lesson whose C1 is not L02's
+    header, first, second = grades_csv([("alice", l02), ("alice", l03)]).splitlines()
+    columns = header.split(",")
+    assert columns[:3] == ["student", "lesson", "rubric_version"] and {"L02.C1", "L03.C1", "L02.E1"} <= set(columns)
+    assert first.split(",")[1] == "L02" and second.split(",")[columns.index("L02.C1")] == ""
+    alone = grades_csv([("alice", l02)]).splitlines()[0].split(",")
+    assert "lesson" not in alone and alone[-8:] == ["C1", "C2", "C3", "P1", "P2", "P3", "P4", "E1"]

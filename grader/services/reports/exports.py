@@ -46,8 +46,9 @@ def course_grades_csv(*, session: Session, course: Course, latest: bool = False)
                              .where(Submission.course_id == course.id, Grade.superseded_at.is_(None),
                                     Submission.id.not_in(measuring_submissions()))  # a pool's own checks
                              .order_by(Submission.id)).all()
-    if latest:
-        graded = sorted({s.student_id: (s, g) for s, g in graded}.values(), key=lambda sg: sg[0].student.name)
+    if latest:  # each student's latest graded attempt of each lesson the course teaches
+        graded = sorted({(s.student_id, s.lesson): (s, g) for s, g in graded}.values(),
+                        key=lambda sg: (sg[0].student.name, sg[0].lesson))
     text = grades_csv([(s.student.name, _report(g)) for s, g in graded],
                       submissions=[(s.id, f"{s.created_at.isoformat()}+00:00") for s, _ in graded])
     return f"{course.name}-{'latest' if latest else 'all'}-grades.csv", _with_overrides(text, [g for _, g in graded])
@@ -69,11 +70,13 @@ def _with_overrides(text: str, grades: list[Grade]) -> str:
     item's cell holding its score even where the measurement alone was inconclusive (left empty there)."""
     rows = list(csv.reader(io.StringIO(text)))
     header = rows[0] + ["overrides"]
+    mixed = "lesson" in rows[0]  # a file of two lessons names each item's column with its lesson (grades_csv)
     for row, grade in zip(rows[1:], grades, strict=True):
         items = _overridden(grade)
         for item in items:
-            if item["id"] in header:
-                row[header.index(item["id"])] = f"{item['score']:g}"
+            column = f"{grade.report.get('lesson')}.{item['id']}" if mixed else item["id"]
+            if column in header:
+                row[header.index(column)] = f"{item['score']:g}"
         row.append("; ".join(override_note(i) for i in items))
     return csv_text([header, *rows[1:]])
 

@@ -90,7 +90,7 @@ def test_an_item_without_a_scoring_rule_is_refused(authored):
 
 def test_an_unknown_lesson_and_a_file_declaring_none_are_refused(tmp_path):
     unknown = grader("lesson", "check", "L99")
-    assert unknown.exit_code == 1 and "no lesson 'L99' is installed (entry points l03_grader.lessons: L03)" in unknown.output
+    assert unknown.exit_code == 1 and "no lesson 'L99' is installed (entry points l03_grader.lessons: L02, L03)" in unknown.output
     empty = tmp_path / "lesson.py"
     empty.write_text("LESSON = 'L02'\n")
     refused = grader("lesson", "check", str(empty))
