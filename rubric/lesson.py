@@ -102,6 +102,9 @@ class Lesson:
     expected_arrays: Callable[[Any], dict] | None = None
     case_metrics: Callable[[Any, Mapping], Any] | None = None
     metrics_models: Mapping[str, type] = field(default_factory=dict)
+    # {rubric item part: its heading on a report} in English (translated by the NAME.LANG.yaml section "part_titles");
+    # a part it leaves out is headed as the service heads it
+    part_titles: Mapping[str, str] = field(default_factory=dict)
     origin: str = field(default="", compare=False)  # where the declaration was found (an entry point or a file)
 
     def title(self, language: str) -> str:

@@ -39,4 +39,6 @@ LESSON = Lesson(
     expected_arrays=metrics.expected_arrays,
     case_metrics=metrics.case_metrics,
     metrics_models={"drop": metrics.DropMetrics},
+    part_titles={"A": "Predictions: the falling box", "checkpoint": "Concept checkpoints: counting steps and time",
+                 "hands_on": "Exercise: your own timing"},
 )

@@ -27,6 +27,9 @@ from grader.services.reports import exports, series as chart_series
 from grader.services.submissions import submit as submissions
 from grader.services.errors import NotFound
 from grader.services.submissions.visibility import attempt_standing, grade_view
+from grader import i18n
+from rubric.lesson import LessonNotFound
+from rubric.lesson import lesson as installed_lesson
 from rubric.variants import texts
 
 PART_TITLES = {
@@ -94,11 +97,21 @@ def report_response(request: Request, session, user, submission: Submission, *, 
     view = report_view(submission, grade if grade.shown else None, grade.withheld_runs)
     return TEMPLATES.TemplateResponse(request, "submissions/report.html", {
         "user": user, "view": view, "part_titles": PART_TITLES, "attempt": attempt, "lesson": submission.lesson,
+        "lesson_part_titles": _lesson_part_titles(submission.lesson, request_locale(request)),
         "history": [] if grade.hidden else grade_history(session, submission.id),
         "charts": _charts(submission, grade.withheld_runs),
         "series_url": f"/submissions/{submission.id}/series.json",
         "variant_questions": _variant_questions(session, submission, view, request_locale(request)),
     } | (extra or {}), status_code=status_code)
+
+
+def _lesson_part_titles(name: str, locale: str) -> dict[str, str]:
+    """The headings a lesson declares for its parts, in the reader's language (its texts file's part_titles)."""
+    try:
+        declared = installed_lesson(name).part_titles
+    except LessonNotFound:
+        return {}
+    return {part: i18n.lesson_word(locale, "part_titles", text, name) for part, text in declared.items()}
 
 
 def _variant_questions(session, submission: Submission, view, locale: str) -> dict[str, str]:
