@@ -90,7 +90,9 @@ def test_the_instructor_dashboard_shows_the_item_analysis_of_the_json(browser, s
         for wrong in item["wrong_answers"]:
             assert f"{wrong['prediction']} \u00d7 {wrong['count']}" in cells.nth(5).inner_text(), item_id
     roster = {r["student"]: r for r in data["roster"]}
-    assert roster["alice"]["submission_id"] == graded["alice"]["id"] and roster["alice"]["attempts"] >= 2
+    # her latest graded attempt: other modules of the session (the notebook routes) may have graded a later one
+    latest = max(s["id"] for s in stack.client("alice").http.get("/submissions").json() if s["status"] == "graded")
+    assert roster["alice"]["submission_id"] == latest >= graded["alice"]["id"] and roster["alice"]["attempts"] >= 2
     assert page.locator("#roster").inner_text().count("alice") == 1
     page.screenshot(path=SHOTS / "instructor_dashboard.png", full_page=True)
     student = signed_in(browser, stack, "alice")

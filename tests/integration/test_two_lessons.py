@@ -20,7 +20,9 @@ from tests.integration.helpers import SHOTS, WAIT_LIMIT_S, at, case_runs, events
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 L02_YAML = Path(__file__).resolve().parents[2] / "examples" / "l02" / "reference.yaml"
 L02_REFERENCE = yaml.safe_load(L02_YAML.read_text())
-COURSE = "l03-test"
+# A course of its own on the session's stack: its students' attempts never become another module's latest ones.
+COURSE = "two-lessons"
+PEOPLE = (("prof", "instructor"), ("alice", "student"), ("bob", "student"))
 
 
 def _assignment(stack, lesson: str, part: str) -> int:
@@ -33,22 +35,46 @@ def _assignment(stack, lesson: str, part: str) -> int:
 
 
 def _auth(stack, who: str) -> dict:
-    return {"Authorization": f"Bearer {stack.tokens[who]}"}
+    return {"Authorization": f"Bearer {TOKENS[who]}"}
+
+
+TOKENS: dict[str, str] = {}
 
 
 @pytest.fixture(scope="module")
-def assignments(stack) -> dict[str, int]:
-    return {"L02": _assignment(stack, "L02", "sheet"), "L03": _assignment(stack, "L03", "checkpoints")}
+def course(stack):
+    """The course's instructor and two students, their tokens in TOKENS, and a view of the stack that signs in as
+    them (stack.client, signed_in)."""
+    from dataclasses import replace
+
+    from sqlalchemy.orm import Session
+
+    from grader.services.identity import accounts
+
+    with Session(stack.engine) as session:
+        made = accounts.get_or_create_course(session=session, name=COURSE)
+        for name, role in PEOPLE:
+            user = accounts.get_or_create_user(session=session, course=made, name=f"{COURSE}-{name}", role=role)
+            TOKENS[name] = accounts.create_token(session=session, user=user)
+        session.commit()
+    return replace(stack, tokens=dict(TOKENS))
 
 
-def test_an_assignment_of_a_lesson_not_installed_is_refused_naming_the_installed_ones(stack):
+@pytest.fixture(scope="module")
+def assignments(course) -> dict[str, int]:
+    return {"L02": _assignment(course, "L02", "sheet"), "L03": _assignment(course, "L03", "checkpoints")}
+
+
+def test_an_assignment_of_a_lesson_not_installed_is_refused_naming_the_installed_ones(course):
+    stack = course
     made = httpx.post(f"{stack.url}/v1/courses/{COURSE}/assignments", headers=_auth(stack, "prof"), json={
         "title": "L09", "lesson": "L09", "open_at": at(days=-1), "due_at": at(days=30), "hard_close_at": at(days=31)})
     assert made.status_code == 422, made.text
     assert "'L09' is not an installed lesson (installed: L02, L03)" in made.text
 
 
-def test_a_sheet_of_the_other_lesson_is_refused_by_an_assignment_and_nothing_is_stored(stack, assignments):
+def test_a_sheet_of_the_other_lesson_is_refused_by_an_assignment_and_nothing_is_stored(course, assignments):
+    stack = course
     client = stack.client("bob")
     before = len(client.http.get("/submissions").json())
     refused = client.http.post("/submissions", json={"sheet": copy.deepcopy(L02_REFERENCE),
@@ -58,7 +84,8 @@ def test_a_sheet_of_the_other_lesson_is_refused_by_an_assignment_and_nothing_is_
     assert len(client.http.get("/submissions").json()) == before
 
 
-def test_one_student_is_graded_on_each_lesson_by_its_own_runs_and_lab_check(stack, assignments):
+def test_one_student_is_graded_on_each_lesson_by_its_own_runs_and_lab_check(course, assignments):
+    stack = course
     client = stack.client("alice")
     l02 = client.submit(copy.deepcopy(L02_REFERENCE), assignment_id=assignments["L02"])
     checkpoints = reference_sheet()
@@ -116,9 +143,10 @@ def test_one_student_is_graded_on_each_lesson_by_its_own_runs_and_lab_check(stac
         runs["S1"]["series"]["contact_count"].index(next(c for c in runs["S1"]["series"]["contact_count"] if c)) ])
 
 
-def test_a_student_answers_l02_from_the_page_in_chinese_and_reads_its_report(browser, stack, assignments):
+def test_a_student_answers_l02_from_the_page_in_chinese_and_reads_its_report(browser, course, assignments):
     """The L02 assignment's page, read in Chinese: its questions, a YAML imported, Check by L02's rule, submitted and
     graded on real runs; the report shows L02's check line and its conditions in Chinese."""
+    stack = course
     page = signed_in(browser, stack, "bob")
     page.set_extra_http_headers({"Accept-Language": "zh-CN,zh;q=0.9"})
     page.goto(f"{stack.url}/assignments/{assignments['L02']}/sheet")
