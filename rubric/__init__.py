@@ -64,10 +64,10 @@ def cases_to_run(sheet, rubric: Rubric | None = None, variant: Variant | None = 
 
 
 def one_factor_findings(sheet, rubric: Rubric, variant: Variant | None = None) -> dict[str, ConfigFinding]:
-    """Each submitted config compared with its rule's baseline, by the sheet's lesson (rubric.one_factor for L03)."""
+    """Each submitted config compared with its rule's baseline, by the rubric's lesson (rubric.one_factor for L03)."""
     from .lesson import lesson
 
-    return dict(lesson(sheet.lesson).config_findings(sheet, rubric, variant))
+    return dict(lesson(rubric.lesson).config_findings(sheet, rubric, variant))
 
 
 def grade_sheet(sheet, results, rubric: Rubric | None = None, variant: Variant | None = None) -> GradeReport:

@@ -18,6 +18,7 @@ import yaml
 from sqlalchemy import select
 
 from tests.factories import reference_sheet, rubric_v3
+from tests.notebooks import as_bytes, filled
 from tests.grader.services.setup.test_assignments import ROSTER, at, create
 from tests.grader.services.test_integrity_gaps import checkpoint_report, graded
 
@@ -118,6 +119,16 @@ def assignment_form(**fields) -> dict:
 
 
 SHEET_YAML = {"file": ("sheet.yaml", yaml.safe_dump(reference_sheet()).encode(), "application/yaml")}
+# The template notebook filled with the reference answers (issue 48's upload on the sheet page)
+SHEET_NOTEBOOK = {"file": ("sheet.ipynb", as_bytes(filled(reference_sheet())), "application/x-ipynb+json")}
+# the route's assignment holds the checkpoints alone: a notebook with their cells only, filled
+_CHECKPOINTS = {k: v for k, v in reference_sheet().items() if k != "configs"}
+_CHECKPOINTS["answers"] = {k: v for k, v in _CHECKPOINTS["answers"].items() if k.startswith("C")}
+_CHECKPOINT_CELLS = {"nbformat": 4, "nbformat_minor": 5, "metadata": {}, "cells": [
+    {"cell_type": "code", "id": f"answer-{k}", "metadata": {"tags": [f"answer:{k}"]}, "source": "",
+     "outputs": [], "execution_count": None} for k in _CHECKPOINTS["answers"]]}
+CHECKPOINT_NOTEBOOK = {"file": ("sheet.ipynb", as_bytes(filled(_CHECKPOINTS, notebook=_CHECKPOINT_CELLS)),
+                                "application/x-ipynb+json")}
 
 ROUTES: dict[str, Route] = {
     # Anyone: the authority is what is posted, not who posts it (a token, a link's secret, the platform's signed
@@ -183,6 +194,9 @@ ROUTES: dict[str, Route] = {
     "/sheet": Route(WRITERS, lambda w: ("/sheet", {"action": "save", "student": "alice"}, None)),
     "/sheet/draft": Route(WRITERS, lambda w: ("/sheet/draft", {"student": "alice"}, None)),
     "/sheet/import": Route(WRITERS, lambda w: ("/sheet/import", {}, SHEET_YAML)),
+    "/assignments/{assignment_id}/sheet/notebook": Route(COURSE_WRITERS, lambda w: (
+        f"/assignments/{w.assignment}/sheet/notebook", {}, CHECKPOINT_NOTEBOOK)),
+    "/sheet/notebook": Route(WRITERS, lambda w: ("/sheet/notebook", {}, SHEET_NOTEBOOK)),
 }
 
 

@@ -23,7 +23,7 @@ ZH = {"Accept-Language": "zh-CN"}
 
 
 def drawn() -> dict[str, rubric.Variant]:
-    return {v.id: v for v in rubric.draw_pool(rubric.load_variant_space("L03"), seed=SEED, k=K).variants}
+    return {v.id: v for v in rubric.draw_pool(rubric.load_variant_space("L03", "1"), seed=SEED, k=K).variants}
 
 
 def pooled_assignment(api, *, state: str = "ready", part: str = "sheet") -> int:
