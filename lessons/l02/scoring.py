@@ -101,10 +101,6 @@ def _window(result: CaseResult):
     return result.provenance.discretization
 
 
-def _same_count(answer: int, measured: int) -> bool:
-    return answer == measured
-
-
 def _close(a: float, b: float, tolerance: float) -> bool:
     return abs(a - b) <= tolerance
 
@@ -116,7 +112,7 @@ def _tol(rubric: Rubric, name: str) -> float:
 def rule_sample_counts(runs, rubric, answer) -> Outcome:
     s1, s2 = runs("S1"), runs("S2")
     got = {"S1": _window(s1).sample_count, "S2": _window(s2).sample_count}
-    ok = _same_count(answer.S1, got["S1"]) and _same_count(answer.S2, got["S2"])
+    ok = answer.S1 == got["S1"] and answer.S2 == got["S2"]
     return Outcome("credit" if ok else "no_credit", f"S1 {got['S1']} samples, S2 {got['S2']}",
                    f"the engine sampled S1 {got['S1']} times and S2 {got['S2']} times (n_steps = duration / dt)",
                    {"S1_samples": got["S1"], "S2_samples": got["S2"]}, {n: r.backend for n, r in (("S1", s1), ("S2", s2))})
@@ -126,7 +122,7 @@ def rule_internal_updates(runs, rubric, answer) -> Outcome:
     s1, s2 = runs("S1"), runs("S2")
     w1, w2 = _window(s1), _window(s2)
     internal_dt = w2.substep_dt
-    ok = (_same_count(answer.S1, w1.internal_updates) and _same_count(answer.S2, w2.internal_updates)
+    ok = (answer.S1 == w1.internal_updates and answer.S2 == w2.internal_updates
           and math.isclose(answer.internal_dt.si, internal_dt, rel_tol=_tol(rubric, "computed_relative")))
     return Outcome("credit" if ok else "no_credit",
                    f"S1 {w1.internal_updates} internal updates, S2 {w2.internal_updates}; S2's internal dt "
@@ -196,7 +192,7 @@ def rule_lower_run(runs, rubric, answer) -> Outcome:
 def rule_exercise_counts(runs, rubric, answer) -> Outcome:
     run = runs(SHEET_CASE_PREFIX + EXERCISE)
     w = _window(run)
-    ok = _same_count(answer.samples, w.sample_count) and _same_count(answer.internal_updates, w.internal_updates)
+    ok = answer.samples == w.sample_count and answer.internal_updates == w.internal_updates
     return Outcome("credit" if ok else "no_credit", f"{w.sample_count} samples, {w.internal_updates} internal updates",
                    f"your config ran {w.sample_count} outer steps of {w.dt:g} s with {w.substeps} substeps each",
                    {"samples": w.sample_count, "internal_updates": w.internal_updates},
