@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import copy
 import os
+import time
+import warnings
 
 import pytest
 
 from tests import services
 from tests.factories import create_people, reference_sheet
-from tests.integration.helpers import CHROMIUM, SHOTS, submit_and_wait
+from tests.integration.helpers import CHROMIUM, SHOTS, backlog, submit_and_wait
 from tools.harness.stack import Stack
 
 
@@ -28,6 +30,9 @@ def kernel_cache_filled(measured) -> None:
     from worker.kernel_cache import compile_once
 
     compile_once("cpu")
+
+
+STACKS: list[Stack] = []  # the session's stack once a module has asked for it
 
 
 @pytest.fixture(scope="session")
@@ -59,13 +64,43 @@ def stack(tmp_path_factory, kernel_cache_filled):
         api = services.start_api(env, port, logs / "api.log")
         worker = services.start_worker(env, "cpu,grade", logs / "worker-cpu.log")
         try:
-            yield Stack("redis-pg", f"http://127.0.0.1:{port}", database_url, env, data_dir, tokens, engine, worker, api,
-                        logs=logs)
+            STACKS.append(Stack("redis-pg", f"http://127.0.0.1:{port}", database_url, env, data_dir, tokens, engine,
+                                worker, api, logs=logs))
+            yield STACKS[-1]
         finally:
+            STACKS.clear()
             services.stop(worker)
             services.stop(api)
             engine.dispose()
             redis.flushdb()
+
+
+DRAIN_STALL_S = 90  # a backlog unchanged this long is not being worked on (a run a test left stuck on purpose)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def stack_drained(request):
+    """After each module, wait until the session's stack owes no work, and warn naming the module when it did.
+
+    Modules share one stack per test process in a shuffled order, and a lab check waits behind every queued case run
+    (worker.celery_app). A module that left runs behind (a pool still drawing past its K, submissions it did not wait
+    for) made a later module's lab check wait for them: in CI of 2026-12-08, test_two_lessons gave up on a lab check
+    after 900 s that passed alone in 159 s. Waiting here puts that time on the module that caused it, and the warning
+    says which and what it left. A backlog that stops moving for DRAIN_STALL_S is left as it is (and warned about)."""
+    yield
+    if not STACKS:
+        return
+    started = last_change = time.monotonic()
+    left = backlog(STACKS[-1].engine)
+    while left and time.monotonic() - last_change < DRAIN_STALL_S:
+        time.sleep(0.5)
+        now = backlog(STACKS[-1].engine)
+        if now != left:
+            left, last_change = now, time.monotonic()
+    waited = time.monotonic() - started
+    if left or waited > 5:
+        warnings.warn(f"{request.module.__name__} left work on the session's stack: "
+                      f"{'still ' + repr(left) + ' after' if left else 'drained in'} {waited:.0f} s", stacklevel=1)
 
 
 @pytest.fixture(scope="session")

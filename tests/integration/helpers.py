@@ -14,7 +14,8 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from grader.core import clock
-from grader.core.models import CaseRun, Event, Grade
+from grader.core.models import CaseRun, Event, Grade, Submission, VariantPool
+from grader.core.states import CaseRunState, PoolState, SubmissionState
 from tests import services
 from tests.factories import ROOT
 
@@ -59,6 +60,25 @@ def case_runs(stack, submission_id: int) -> list[CaseRun]:
 def events(stack, submission_id: int) -> list[Event]:
     with Session(stack.engine) as session:
         return session.scalars(select(Event).where(Event.submission_id == submission_id).order_by(Event.id)).all()
+
+
+def backlog(engine) -> dict[str, int]:
+    """The work a stack still owes, by kind (only kinds with some): case runs queued or running, submissions not yet
+    graded or failed, grades whose lab check is not stored yet, variant pools still measuring. Each lab check waits on
+    the cpu queue behind every case run (worker.celery_app), so a module that leaves runs behind delays the next
+    module's checks by as long as they take."""
+    with Session(engine) as session:
+        counts = {
+            "case runs queued or running": session.scalar(select(func.count()).select_from(CaseRun).where(
+                CaseRun.status.in_([CaseRunState.QUEUED, CaseRunState.RUNNING]))),
+            "submissions running or grading": session.scalar(select(func.count()).select_from(Submission).where(
+                Submission.status.in_([SubmissionState.RUNNING, SubmissionState.GRADING]))),
+            "grades without their lab check": session.scalar(select(func.count()).select_from(Grade).where(
+                Grade.completed_at.is_(None), Grade.superseded_at.is_(None))),
+            "variant pools measuring": session.scalar(select(func.count()).select_from(VariantPool).where(
+                VariantPool.state == PoolState.MEASURING)),
+        }
+    return {kind: n for kind, n in counts.items() if n}
 
 
 CHROMIUM = Path("/usr/bin/chromium")

@@ -15,6 +15,7 @@ import yaml
 
 from rubric import load_rubric
 from tests.factories import reference_sheet
+from tests.integration.a11y import assert_accessible
 from tests.integration.helpers import SHOTS, WAIT_LIMIT_S, at, case_runs, events, signed_in, wait_until
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
@@ -96,11 +97,8 @@ def test_one_student_is_graded_on_each_lesson_by_its_own_runs_and_lab_check(cour
               for lesson, made in (("L02", l02), ("L03", l03))}
     assert {lesson: final["status"] for lesson, final in finals.items()} == {"L02": "graded", "L03": "graded"}, finals
 
-    # The lab check is added to the grade once evaluated (worker.grading.complete_grade); a failed one says so.
-    for made in (l02, l03):
-        wait_until(lambda: client.grade(made["id"])["check"] is not None
-                   or any("lab check failed" in (e.detail or "") for e in events(stack, made["id"])),
-                   f"the lab check of submission {made['id']}")
+    # client.wait returned each with its report complete: the lab check added (worker.grading.complete_grade), or
+    # none wanted (a checkpoint sheet graded at once in its request, below).
     grade = client.grade(l02["id"])
     book = load_rubric("L02")
     assert (grade["rubric_lesson"], grade["rubric_version"], grade["rubric_hash"]) == ("L02", "1", book.content_hash)
@@ -115,7 +113,15 @@ def test_one_student_is_graded_on_each_lesson_by_its_own_runs_and_lab_check(cour
 
     grade = client.grade(l03["id"])
     assert grade["rubric_lesson"] == "L03" and [i["id"] for i in grade["items"]] == [f"C{n}" for n in range(1, 9)]
-    assert grade["check"]["verdict_line"] == "L03 CHECK: PASSED", grade["check"]
+    # A checkpoint sheet whose cases some earlier submission on this stack measured (another module's, in the suite's
+    # shuffled order) is graded at once in its request on those runs, without a lab check (grader.services.submissions
+    # .submit); measured for it, the worker adds L03's check. CI of 2026-12-08 waited 900 s for a check of the first
+    # kind: which one happened is read from the submission's events, and each is asserted for what it is.
+    at_once = any("graded at once" in (e.detail or "") for e in events(stack, l03["id"]))
+    if at_once:
+        assert grade["check"] is None and all(run.reused_from_id for run in case_runs(stack, l03["id"])), grade
+    else:
+        assert grade["check"]["verdict_line"] == "L03 CHECK: PASSED", grade["check"]
     assert {run.spec["kind"] for run in case_runs(stack, l03["id"])} == {"contact", "friction"}
 
     # The instructor's course views carry both lessons' grades.
@@ -127,8 +133,22 @@ def test_one_student_is_graded_on_each_lesson_by_its_own_runs_and_lab_check(cour
     assert (rows[str(l02["id"])]["lesson"], rows[str(l03["id"])]["lesson"]) == ("L02", "L03")
     assert (rows[str(l02["id"])]["L02.C2"], rows[str(l02["id"])]["L03.C2"], rows[str(l03["id"])]["L03.C2"]) == (
         "3", "", "1")
+    # The dashboard's item analysis is per lesson: L02's C1 and L03's C1 are different questions, never one row.
     dashboard = httpx.get(f"{stack.url}/v1/courses/{COURSE}/dashboard", headers=_auth(stack, "prof"))
     assert dashboard.status_code == 200, dashboard.text
+    data = dashboard.json()
+    assert data["lessons"] == ["L02", "L03"] and data["students_graded"] == 1, data["lessons"]
+    analyses = {a["lesson"]: a["analysis"] for a in data["analyses"]}
+    assert {lesson: a["n_reports"] for lesson, a in analyses.items()} == {"L02": 1, "L03": 1}
+    assert [i["id"] for i in analyses["L02"]["items"]] == [item.id for item in book.items]
+    assert [i["id"] for i in analyses["L03"]["items"]] == [f"C{n}" for n in range(1, 9)]
+    assert analyses["L02"]["mean_total"] == 22 and analyses["L02"]["max_total"] == 22
+    assert data["lesson"] == "L03" and data["analysis"] == analyses["L03"]  # the latest submission's lesson
+    c1 = {lesson: next(i["question"] for i in a["items"] if i["id"] == "C1") for lesson, a in analyses.items()}
+    assert c1["L02"] != c1["L03"], c1
+    html = httpx.get(f"{stack.url}/courses/{COURSE}/dashboard", headers=_auth(stack, "prof")).text
+    assert 'id="item-analysis-L02"' in html and 'id="item-analysis-L03"' in html
+    assert 'id="analysis-L02-P1"' in html and 'id="analysis-L03-C8"' in html and "Lessons L02, L03" in html
     exported = httpx.get(f"{stack.url}/v1/submissions/{l02['id']}/gradescope.json", headers=_auth(stack, "prof"))
     assert exported.status_code == 200 and exported.json()["score"] == 22, exported.text
 
@@ -177,3 +197,14 @@ def test_a_student_answers_l02_from_the_page_in_chinese_and_reads_its_report(bro
     assert page.locator("#check-line code").inner_text() == "L02 CHECK: PASSED"
     assert "盒子在自由落体预测的时刻接触地面" in page.inner_text("#lab-check")
     page.screenshot(path=SHOTS / "l02_report_zh.png", full_page=True)
+
+    # The instructor's dashboard in Chinese: each lesson's item analysis, its questions in its own lesson's words.
+    prof = signed_in(browser, stack, "prof")
+    prof.set_extra_http_headers({"Accept-Language": "zh-CN,zh;q=0.9"})
+    prof.goto(f"{stack.url}/courses/{COURSE}/dashboard")
+    prof.wait_for_selector("#item-analysis-L02")
+    assert "在 0.6 s 内，S1（dt 0.01 s）和 S2（dt 0.005 s）各记录多少个采样" in prof.inner_text("#analysis-L02-C1")
+    assert prof.locator("#analysis-L03-C1").count() == prof.locator("#item-analysis-L03").count()  # its own row
+    assert_accessible(prof, "the dashboard of a course with two lessons")
+    prof.locator("#item-analysis-title").scroll_into_view_if_needed()
+    prof.screenshot(path=SHOTS / "dashboard_two_lessons_zh.png", full_page=True)
