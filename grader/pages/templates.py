@@ -69,17 +69,18 @@ def message(context, text) -> str:
     return i18n.message(_locale(context), text)
 
 
-def _lesson(context) -> tuple[str, ...]:
-    """The lesson whose texts the page shows: the page's `lesson` (an assignment's, a submission's), else i18n's
-    default."""
-    name = context.get("lesson")
+def _lesson(context, of: str | None = None) -> tuple[str, ...]:
+    """The lesson whose texts the page shows: `of` where a page shows several (the dashboard's item analysis of each
+    lesson), else the page's `lesson` (an assignment's, a submission's), else i18n's default."""
+    name = of or context.get("lesson")
     return (name,) if isinstance(name, str) and name else ()
 
 
 @pass_context
-def lesson(context, text, section: str = "questions") -> str:
-    """The lesson's own text (a question, a config rule, an answer label or choice) in the page's language."""
-    return i18n.lesson_word(_locale(context), section, text, *_lesson(context))
+def lesson(context, text, section: str = "questions", of: str | None = None) -> str:
+    """The lesson's own text (a question, a config rule, an answer label or choice) in the page's language; `of`
+    names the lesson where the page shows more than one."""
+    return i18n.lesson_word(_locale(context), section, text, *_lesson(context, of))
 
 
 @pass_context

@@ -76,15 +76,15 @@ def test_the_instructor_dashboard_shows_the_item_analysis_of_the_json(browser, s
     data = stack.client("prof").dashboard("l03-test")
     page = signed_in(browser, stack, "prof")
     page.click("text=Class dashboard")
-    page.wait_for_selector("#item-analysis")
+    page.wait_for_selector("#item-analysis-L03")
     # Each student's latest graded attempt counts: whatever else the session graded, Bob's H3 is a wrong answer.
     analysis = {item["id"]: item for item in data["analysis"]["items"]}
     assert analysis["H3"]["credit_share"] < 1.0
     assert any("farther" in w["prediction"] for w in analysis["H3"]["wrong_answers"])
-    rows = page.locator("#item-analysis tbody tr")
+    rows = page.locator("#item-analysis-L03 tbody tr")
     assert rows.count() == len(analysis)
     for item_id, item in analysis.items():
-        cells = page.locator(f"#analysis-{item_id} td")
+        cells = page.locator(f"#analysis-L03-{item_id} td")
         assert cells.nth(1).inner_text() == str(item["n"]), item_id
         assert cells.nth(2).inner_text().strip() == f"{round(100 * item['credit_share'])}%", item_id
         for wrong in item["wrong_answers"]:

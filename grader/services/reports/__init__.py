@@ -10,8 +10,8 @@ course_page: A student's course page as data: per assignment of the course, the 
   public: AttemptLine, NowLine, AssignmentLine, student_course
 dashboard: A course's class dashboard, read from storage once and served both as JSON (/v1) and as the page.
   public: RosterRow, RunProblem, PredictionRow, PredictionPlot, MeasurementGroup, BackendSpread, AssignmentGrades,
-    Dashboard, current_grades, latest_graded, case_run_of, resend_case_run, predictions, backend_spread,
-    graded_reports, course_dashboard, assignment_grades
+    LessonAnalysis, Dashboard, current_grades, latest_graded, case_run_of, resend_case_run, predictions,
+    backend_spread, graded_reports, lesson_analyses, course_dashboard, assignment_grades
 exports: Grade exports for instructors: a course's grades as CSV, an assignment's counted grades as CSV, one
   submission as Gradescope results.json, and the evidence files of a case run (from the database).
   public: course_grades_csv, override_note, counted_grades_csv, gradescope, evidence_names, evidence_file

@@ -176,15 +176,26 @@ class AssignmentVariants(BaseModel):
     flags: list[FlagRow]
 
 
+class LessonAnalysis(BaseModel):
+    """The item analysis (rubric.analysis.ClassAnalysis) of one lesson of the course, over each student's latest
+    graded attempt of that lesson: items are compared with the same lesson's items only (one lesson's C1 is not another's)."""
+
+    lesson: str
+    analysis: dict[str, Any]
+
+
 class Dashboard(BaseModel):
     course: str
-    lesson: str | None
+    lesson: str | None  # the lesson of the course's latest submission; `analysis` is that lesson's
+    lessons: list[str] = []  # every lesson the course's submissions are of, in order
+    students_graded: int = 0  # students with a graded attempt of any lesson
     rubric_versions: list[str]
     submissions_by_state: dict[str, int]
     submissions_per_day: dict[str, int]
     problems: list[RunProblem]
     roster: list[RosterRow]
     analysis: dict[str, Any]
+    analyses: list[LessonAnalysis] = []  # one per lesson with a graded attempt, in `lessons`' order
     predictions: list[PredictionPlot]
     backends: BackendSpread
     assignments: list[AssignmentGrades] = []
@@ -205,15 +216,17 @@ def current_grades(session: Session, *, course_id: int) -> dict[int, Grade]:
 
 
 def latest_graded(session: Session, course: Course) -> list[tuple[Submission, Grade]]:
-    """Each student's latest graded attempt (the one the item analysis counts), ordered by student name."""
+    """Each student's latest graded attempt of each lesson (the one the item analysis counts), ordered by student
+    name, then lesson. A course that runs two lessons keeps one attempt of each: a sheet of one lesson never stands
+    for the student's attempt of the other."""
     grades = current_grades(session, course_id=course.id)
-    latest: dict[int, tuple[Submission, Grade]] = {}
+    latest: dict[tuple[int, str], tuple[Submission, Grade]] = {}
     for s in session.scalars(select(Submission).where(Submission.course_id == course.id,
                                                       Submission.id.in_(list(grades)),
                                                       Submission.id.not_in(measuring_submissions()))
                              .order_by(Submission.id)):
-        latest[s.student_id] = (s, grades[s.id])
-    return sorted(latest.values(), key=lambda sg: sg[0].student.name)
+        latest[(s.student_id, s.lesson)] = (s, grades[s.id])
+    return sorted(latest.values(), key=lambda sg: (sg[0].student.name, sg[0].lesson))
 
 
 # --- problems and the resend action --------------------------------------------------------------------------------
@@ -427,9 +440,13 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
                                            since=run.finished_at or run.started_at or run.queued_at,
                                            delivery=run.delivery, resendable=why_not is None,
                                            not_resendable_because=why_not, measures_variant=measuring.get(s.id)))
+    lesson = submissions[-1].lesson if submissions else None
+    analyses = lesson_analyses(graded)
     return Dashboard(
         course=course.name,
-        lesson=submissions[-1].lesson if submissions else None,
+        lesson=lesson,
+        lessons=sorted({s.lesson for s in submissions}),
+        students_graded=len({s.student_id for s, _ in graded}),
         rubric_versions=sorted({report.rubric_version for _, report in graded}),
         submissions_by_state=dict(Counter(s.status for s in submissions)),
         submissions_per_day=per_day(submissions, course.timezone),
@@ -438,7 +455,8 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
                           attempts=attempts[student], total=grades[s.id].total if s.id in grades else None,
                           max_total=grades[s.id].max_total if s.id in grades else None)
                 for student, s in sorted(latest.items(), key=lambda kv: kv[1].student.name)],
-        analysis=class_analysis([report for _, report in graded]).model_dump(mode="json"),
+        analysis=next((a.analysis for a in analyses if a.lesson == lesson), class_analysis([]).model_dump(mode="json")),
+        analyses=analyses,
         predictions=predictions(course, graded),
         backends=backend_spread(session, course),
         assignments=(by_assignment := assignment_grades(session, course)),
@@ -449,6 +467,15 @@ def course_dashboard(*, session: Session, course: Course) -> Dashboard:
                           for o in override_store.recent_overrides(session, course_id=course.id)],
         variants=variant_scores(session, course, grades),
     )
+
+
+def lesson_analyses(graded: list[tuple[Submission, Any]]) -> list[LessonAnalysis]:
+    """The item analysis of each lesson over its own reports (each student's latest attempt of it), by lesson."""
+    by_lesson: dict[str, list[GradeReport]] = {}
+    for submission, report in graded:
+        by_lesson.setdefault(submission.lesson, []).append(report)
+    return [LessonAnalysis(lesson=lesson, analysis=class_analysis(reports).model_dump(mode="json"))
+            for lesson, reports in sorted(by_lesson.items())]
 
 
 def variant_scores(session: Session, course: Course, grades: dict[int, Grade]) -> list[AssignmentVariants]:
