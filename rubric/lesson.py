@@ -49,6 +49,23 @@ SOURCE_LANGUAGE = "en"
 
 
 @dataclass(frozen=True)
+class SeriesChart:
+    """One chart of a lesson's report, drawn in the reader's browser: one sampled series of every run of a case kind,
+    overlaid against simulated time (grader/static/report_charts.js). Its caption gives each run's key numbers in
+    words, from the run's stored metrics, so the chart has a text alternative."""
+
+    id: str  # the chart's id on the report page ("drop-z")
+    kind: str  # the case kind whose runs it overlays ("drop")
+    series: str  # the sampled array drawn, one value per sample ("z")
+    title: str  # in English; translated by the NAME.LANG.yaml section "charts"
+    axis: str  # the y axis's label, with its unit ("z (m)")
+    words: Callable[[Mapping[str, Any]], str]  # a run's stored metrics -> its key numbers in words
+    # The metric that holds a run's first contact time, if any: "Zoom to the contact window" zooms to it
+    first_contact: str = ""
+    stepped: bool = False  # a count drawn as steps
+
+
+@dataclass(frozen=True)
 class Lesson:
     """One lesson's declaration (module docstring): its name and texts, its reviewed files, its cases, its scoring
     and its lab check."""
@@ -105,6 +122,8 @@ class Lesson:
     # {rubric item part: its heading on a report} in English (translated by the NAME.LANG.yaml section "part_titles");
     # a part it leaves out is headed as the service heads it
     part_titles: Mapping[str, str] = field(default_factory=dict)
+    # The charts of its report (SeriesChart), beyond the ones the service draws for L03's contact and friction runs
+    charts: Sequence[SeriesChart] = ()
     origin: str = field(default="", compare=False)  # where the declaration was found (an entry point or a file)
 
     def title(self, language: str) -> str:
@@ -264,6 +283,6 @@ def _checked(declared, origin: str, name: str | None) -> Lesson:
     return dataclasses.replace(declared, origin=origin)
 
 
-__all__ = ["ENTRY_POINTS", "Lesson", "LessonNotFound", "SHEET_CASE_PREFIX", "SOURCE_LANGUAGE", "answered", "case_metrics",
-           "checkpoints_only", "expected_arrays", "lesson", "lesson_names", "lesson_of_kind", "load_lesson",
+__all__ = ["ENTRY_POINTS", "Lesson", "LessonNotFound", "SHEET_CASE_PREFIX", "SOURCE_LANGUAGE", "SeriesChart",
+           "answered", "case_metrics", "checkpoints_only", "expected_arrays", "lesson", "lesson_names", "lesson_of_kind", "load_lesson",
            "parse_metrics", "parse_sheet", "parse_spec", "sheet_lesson"]

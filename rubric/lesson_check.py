@@ -137,6 +137,14 @@ def _texts(lesson: Lesson, language: str, rubrics: dict[str, Rubric]) -> list[Pr
                 if not str(table.get(english) or "").strip():
                     problems.append(Problem(path.name, f"{section}.{english!r}", f"{what} of {lesson.name}-v{version}"
                                                                                 f".yaml has no {language} text"))
+    # What the declaration itself titles: its report's part headings and its charts
+    for section, declared in (("part_titles", [(f"part {part}'s heading", title)
+                                               for part, title in lesson.part_titles.items()]),
+                              ("charts", [(f"chart {chart.id}'s title", chart.title) for chart in lesson.charts])):
+        table = data.get(section) or {}
+        problems += [Problem(path.name, f"{section}.{english!r}", f"{what} in {lesson.name}'s declaration has no "
+                                                                  f"{language} text")
+                     for what, english in declared if not str(table.get(english) or "").strip()]
     return problems
 
 

@@ -108,8 +108,29 @@
     return {data: data, series: series, y: units[kind], x: "time since measurement start t (s)", first: null};
   }
 
+  /* A chart the lesson declares (rubric.lesson.SeriesChart): one sampled series of every run of a case kind,
+   * overlaid against time; the element says which series, of which runs, on which axis. */
+  function seriesChart(doc, el) {
+    var key = el.getAttribute("data-series-key"), runs = okRuns(doc, el.getAttribute("data-run-kind"));
+    var stepped = el.getAttribute("data-stepped") === "true", marker = el.getAttribute("data-first-contact");
+    var tables = [], series = [];
+    runs.forEach(function (r, i) {
+      if (!r.series[key]) { throw new Error("run " + r.name + " has no series " + key); }
+      tables.push([r.series.t, r.series[key]]);
+      var extra = stepped ? {paths: uPlot.paths.stepped({align: 1})} : null;
+      series.push(line(r.name + " (dt=" + r.dt + " s, substeps=" + r.substeps + ")",
+                       CASE_COLORS[i % CASE_COLORS.length], DASHES[i % DASHES.length], extra));
+    });
+    if (!runs.length) { throw new Error("no measured run of kind " + el.getAttribute("data-run-kind")); }
+    var times = marker ? runs.map(function (r) { return r.metrics[marker]; })
+      .filter(function (t) { return t !== null && t !== undefined; }) : [];
+    return {data: joined(tables), series: series, y: el.getAttribute("data-axis"), x: "simulated time t (s)",
+            first: times.length ? Math.min.apply(null, times) : null};
+  }
+
   function build(doc, el) {
     var kind = el.getAttribute("data-chart");
+    if (kind.indexOf("series-") === 0) { return seriesChart(doc, el); }
     return kind.indexOf("contact-") === 0 ? contactChart(doc, kind) : frictionChart(doc, kind, el.getAttribute("data-run"));
   }
 

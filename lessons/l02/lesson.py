@@ -8,10 +8,30 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rubric.lesson import Lesson
+from rubric.lesson import Lesson, SeriesChart
 
 from . import check, metrics, scoring, sheet
 from .specs import CASES, DropCase
+
+
+def _first_contact(m) -> str:
+    t = m.get("first_contact_t")
+    return f"first contact at t={t:.3f} s" if t is not None else "no contact reported"
+
+
+# The report's charts (drawn in the reader's browser from each run's stored arrays); each caption gives every run's
+# key numbers from its stored metrics (metrics.DropMetrics).
+CHARTS = (
+    SeriesChart(id="drop-z", kind="drop", series="z", title="The box's centre height z, every run", axis="z (m)",
+                words=lambda m: f"z({m['query_t']:.2f} s) = {m['z_at_query']:.4f} m, {_first_contact(m)}",
+                first_contact="first_contact_t"),
+    SeriesChart(id="drop-vz", kind="drop", series="vz", title="The box's vertical velocity vz, every run",
+                axis="vz (m/s)", words=lambda m: f"vz({m['query_t']:.2f} s) = {m['vz_at_query']:.3f} m/s",
+                first_contact="first_contact_t"),
+    SeriesChart(id="drop-contact", kind="drop", series="contact_count", title="Box–ground contact count, every run",
+                axis="contacts", words=lambda m: f"{_first_contact(m)}; {m['samples']} samples to t={m['final_t']:.2f} s",
+                first_contact="first_contact_t", stepped=True),
+)
 
 LESSON = Lesson(
     name="L02",
@@ -41,4 +61,5 @@ LESSON = Lesson(
     metrics_models={"drop": metrics.DropMetrics},
     part_titles={"A": "Predictions: the falling box", "checkpoint": "Concept checkpoints: counting steps and time",
                  "hands_on": "Exercise: your own timing"},
+    charts=CHARTS,
 )

@@ -16,7 +16,8 @@ import yaml
 from rubric import load_rubric
 from tests.factories import reference_sheet
 from tests.integration.a11y import assert_accessible
-from tests.integration.helpers import SHOTS, WAIT_LIMIT_S, at, case_runs, events, signed_in, wait_until
+from tests.integration.helpers import (SHOTS, WAIT_LIMIT_S, at, case_runs, charts_drawn, events, signed_in,
+                                       wait_until)
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 L02_YAML = Path(__file__).resolve().parents[2] / "examples" / "l02" / "reference.yaml"
@@ -196,6 +197,13 @@ def test_a_student_answers_l02_from_the_page_in_chinese_and_reads_its_report(bro
     page.wait_for_selector("#lab-check")
     assert page.locator("#check-line code").inner_text() == "L02 CHECK: PASSED"
     assert "盒子在自由落体预测的时刻接触地面" in page.inner_text("#lab-check")
+    # L02's own charts (lessons/l02/lesson.py CHARTS), titled in its Chinese words, each drawn over its three runs
+    charts_drawn(page)
+    assert [page.locator(f"#caption-series-drop-{c} strong").inner_text() for c in ("z", "vz", "contact")] == [
+        "盒子中心高度 z（每次运行）.", "盒子竖直速度 vz（每次运行）.", "盒子与地面的接触数（每次运行）."]
+    assert page.locator("#figures .chart").evaluate_all("els => els.map(e => e.getAttribute('data-series'))") == [
+        "3", "3", "3"]
+    assert "S2 (dt=0.005 s, substeps=2): z(0.30 s) = 0.5" in page.inner_text("#caption-series-drop-z")
     page.screenshot(path=SHOTS / "l02_report_zh.png", full_page=True)
 
     # The instructor's dashboard in Chinese: each lesson's item analysis, its questions in its own lesson's words.

@@ -33,6 +33,24 @@ def test_l02_is_a_lesson_of_its_own_folder_found_by_entry_point():
     assert check_lesson(l02) == []
 
 
+def test_the_lesson_check_names_a_chart_title_or_part_heading_left_untranslated(tmp_path):
+    """What the declaration titles itself (Lesson.part_titles, Lesson.charts) needs its Chinese text like a question."""
+    import dataclasses
+    import shutil
+
+    l02 = lesson("L02")
+    files = shutil.copytree(l02.files, tmp_path / "l02", ignore=shutil.ignore_patterns("*.py", "__pycache__"))
+    texts = yaml.safe_load((files / "L02.zh.yaml").read_text(encoding="utf-8"))
+    del texts["charts"]["The box's vertical velocity vz, every run"]
+    del texts["part_titles"]["Exercise: your own timing"]
+    (files / "L02.zh.yaml").write_text(yaml.safe_dump(texts, allow_unicode=True), encoding="utf-8")
+    problems = check_lesson(dataclasses.replace(l02, files=files))
+    assert [(p.field, p.rule) for p in problems] == [
+        ("part_titles.'Exercise: your own timing'", "part hands_on's heading in L02's declaration has no zh text"),
+        ("charts.\"The box's vertical velocity vz, every run\"",
+         "chart drop-vz's title in L02's declaration has no zh text")], problems
+
+
 def test_a_sheet_is_read_by_the_lesson_it_names_and_its_errors_name_the_item(reference):
     assert parse_sheet(reference).lesson == "L02"
     bad = copy.deepcopy(reference)

@@ -22,6 +22,7 @@ import numpy as np
 from grader.core.lifecycle import stored_result
 from grader.core.models import CaseRun, Submission
 from rubric import CaseResult, ContactCase, FrictionCase
+from rubric.lesson import LessonNotFound, lesson
 
 # Significant digits kept per value: float32 measurements carry about 7, and a chart (or a reader) needs fewer.
 DIGITS = 6
@@ -124,11 +125,20 @@ def submission_series(*, submission: Submission, withheld: Mapping[str, str] | N
 
 @dataclass(frozen=True)
 class Chart:
-    """One chart of the report: which drawing (`kind`), of which run (friction charts), and its text alternative."""
+    """One chart of the report: which drawing (`kind`), of which run (friction charts), and its text alternative.
+    A chart the lesson declares (rubric.lesson.SeriesChart) has kind "series-ID" and says what it draws: the sampled
+    `series` of every run of `run_kind`, its `title` (English; the page translates it), its y `axis`, and the metric
+    holding a run's first contact time (`first_contact`), if any."""
 
     kind: str
     run: str
     caption: str
+    title: str = ""
+    series: str = ""
+    run_kind: str = ""
+    axis: str = ""
+    first_contact: str = ""
+    stepped: bool = False
 
     @property
     def id(self) -> str:
@@ -198,4 +208,23 @@ def report_charts(submission: Submission, withheld: Mapping[str, str] | None = N
     charts = [Chart(kind, "", _contact_caption(kind, contact)) for kind in CONTACT_CHARTS] if contact else []
     for run in (r for r in ok if r.metrics.get("kind") == "friction"):
         charts += [Chart(kind, run.name, _lane_caption(kind, run)) for kind in FRICTION_CHARTS]
+    return charts + _lesson_charts(submission.lesson, ok)
+
+
+def _lesson_charts(name: str, ok: list[CaseRun]) -> list[Chart]:
+    """The charts the submission's lesson declares (rubric.lesson.SeriesChart), each over its runs of the chart's
+    case kind; a chart with no such run is left out."""
+    try:
+        declared = lesson(name).charts
+    except LessonNotFound:  # a lesson no longer installed: its runs keep their data, listed without charts
+        return []
+    charts = []
+    for chart in declared:
+        runs = [r for r in ok if r.metrics.get("kind") == chart.kind]
+        if runs:
+            caption = "; ".join(f"{run.name} (dt={run.spec['dt']:g} s, substeps={run.spec['substeps']}): "
+                                f"{chart.words(run.metrics)}" for run in runs)
+            charts.append(Chart(f"series-{chart.id}", "", caption, title=chart.title, series=chart.series,
+                                run_kind=chart.kind, axis=chart.axis, first_contact=chart.first_contact,
+                                stepped=chart.stepped))
     return charts
