@@ -33,7 +33,7 @@ from .discrepancy import (
     compare_relations,
     load_audit_tolerances,
 )
-from .copying import CopyEvidence, copy_evidence
+from .copying import CopyEvidence, copy_evidence, indistinct_pairs
 from .exports import grades_csv, gradescope_results
 from .governance import ReportChanges, RubricGovernanceError, publish_variant_space, publish_version, report_changes
 from .one_factor import ConfigFinding
@@ -124,6 +124,7 @@ __all__ = [
     "ConfigFinding",
     "CopyEvidence",
     "copy_evidence",
+    "indistinct_pairs",
     "GradeReport",
     "ItemGrade",
     "PredictionSheet",

@@ -47,6 +47,14 @@ def indistinct_variants(own: GradeReport, others: Mapping[str, GradeReport]) -> 
     return sorted(v for v, report in others.items() if v != own.variant and not differing_items(own, report))
 
 
+def indistinct_pairs(reports: Mapping[str, GradeReport]) -> list[tuple[str, str]]:
+    """Of variants each graded on its own runs ({variant: report}, in the pool's order), the pairs that no measured
+    item tells apart: they expect alike on every item measured on both, so a sheet copied between the two fits both
+    and no evidence can show it (issue 47). The instructor is told, rather than shown no evidence."""
+    names = list(reports)
+    return [(a, b) for i, a in enumerate(names) for b in names[i + 1:] if not differing_items(reports[a], reports[b])]
+
+
 def copy_evidence(own: GradeReport, others: Mapping[str, GradeReport], *, min_items: int = 2) -> list[CopyEvidence]:
     """Per other variant: the items credited there but not on the student's own variant, where the two variants
     expect different answers (an item both expect alike proves nothing). Listed from `min_items` such items, or, for

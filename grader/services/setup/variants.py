@@ -30,6 +30,7 @@ from rubric.scoring import lesson_run_specs
 from grader.core import lifecycle
 from grader.core.models import (Assignment, CaseRun, CopyFlag, Course, PoolVariant, StudentVariant, Submission, User,
                                 VariantPool, utcnow)
+from grader.core.grades import current_grade
 from grader.core.rubrics import course_rubric
 from grader.core.settings import settings
 from grader.core.states import CaseRunState, PoolState, VariantState
@@ -104,6 +105,9 @@ class PoolView(BaseModel):
     rejected_draws: dict[str, int]
     runs: PoolRuns
     variants: list[VariantRow]
+    # Pairs of kept variants that no measured item tells apart (rubric.indistinct_pairs over their measuring
+    # submissions' grades): copying between the two of a pair cannot be seen (issue 47)
+    indistinct: list[tuple[str, str]] = []
 
 
 class FlagRow(BaseModel):
@@ -409,7 +413,19 @@ def pool_view(*, session: Session, assignment: Assignment, user: User) -> PoolVi
                     dropped=sum(r.state == VariantState.DROPPED for r in rows), created_by=creator.name,
                     created_at=pool.created_at, ready_at=pool.ready_at,
                     rejected_draws=dict(Counter(reason.split(":")[0] for r in pool.rejected for reason in r["reasons"])),
-                    runs=runs, variants=rows)
+                    runs=runs, variants=rows, indistinct=_indistinct(session, pool))
+
+
+def _indistinct(session: Session, pool: VariantPool) -> list[tuple[str, str]]:
+    """rubric.indistinct_pairs over the kept variants' measuring grades (each the lesson's sheet graded on that
+    variant's own runs, so its expected answers are the variant's), in the pool's order."""
+    reports = {}
+    for row in sorted(pool.variants, key=lambda v: v.position):
+        if row.state == VariantState.KEPT and row.submission_id is not None:
+            grade = current_grade(session, row.submission_id)
+            if grade is not None:
+                reports[row.name] = rubric.GradeReport.model_validate(grade.report)
+    return rubric.indistinct_pairs(reports)
 
 
 def _runs_of(session: Session, submission_ids: list[int]) -> PoolRuns:

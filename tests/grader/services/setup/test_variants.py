@@ -5,6 +5,8 @@ tests/integration/test_variants.py."""
 
 from __future__ import annotations
 
+import copy
+import re
 from collections import Counter
 from datetime import timedelta
 
@@ -328,3 +330,83 @@ def test_no_student_gets_a_variant_while_the_pool_is_still_measuring_though_some
         session.commit()
     assert api.client.post("/v1/submissions", json={"sheet": reference_sheet(), "assignment_id": assignment_id},
                            headers=api.as_("alice")).status_code == 202
+
+
+def test_kept_variants_no_measured_item_tells_apart_are_named_on_the_pool_page_and_in_its_json(api):
+    """Issue 47: copy evidence counts only items whose expected answers differ between two variants; a pair that
+    expects alike on every measured item cannot show copying, and the instructor is told so. The measuring grades are
+    stored here as the worker would store them (the reference sheet's report, each item credited and given the
+    variant's expected answer): the first variant expects another A2 than the other two, which expect alike."""
+    from grader.core.db import new_session
+    from grader.core.models import Grade, PoolVariant, User, VariantPool, utcnow
+    from grader.services.setup import variants
+    from tests.factories import reference_sheet
+
+    assignment_id, pool_id = _services_pool(api, k=3)
+    with new_session() as session:
+        prof = session.scalar(select(User).where(User.name == "prof"))
+        variants.measure(session=session, pool=session.get(VariantPool, pool_id), user=prof, sender=Recorded())
+    _all_kept_but(pool_id, "none")
+    book = rubric.load_rubric("L03")
+    base = rubric.grade_sheet(rubric.parse_sheet(reference_sheet()), {}, book).model_dump(mode="json")
+    with new_session() as session:
+        rows = session.scalars(select(PoolVariant).where(PoolVariant.pool_id == pool_id)
+                               .order_by(PoolVariant.position)).all()
+        names = [row.name for row in rows]
+        for n, row in enumerate(rows):
+            report = copy.deepcopy(base) | {"variant": row.name}
+            for item in report["items"]:
+                item["verdict"], item["expected"] = "credit", "alike"
+                if item["id"] == "A2" and n == 0:
+                    item["expected"] = "the first variant's own"
+            session.add(Grade(submission_id=row.submission_id, rubric_lesson="L03", rubric_version=str(book.version),
+                              rubric_hash=book.content_hash, total=report["total"], max_total=report["max_total"],
+                              report=report, completed_at=utcnow()))
+        session.commit()
+
+    pool = api.client.get(f"/v1/assignments/{assignment_id}/variants", headers=api.as_("prof"))
+    assert pool.status_code == 200, pool.text
+    assert pool.json()["indistinct"] == [[names[1], names[2]]], pool.json()["indistinct"]
+    page = api.client.get(f"/assignments/{assignment_id}", headers=api.as_("prof"))
+    assert page.status_code == 200
+    assert f'id="indistinct-{names[1]}-{names[2]}"' in page.text and "No measured item tells" in page.text
+    assert f"indistinct-{names[0]}" not in page.text
+
+
+def test_a_student_never_reads_a_variant_id_which_names_the_pool_seed(api):
+    """Issue 47: a variant's id (v7-1) shows its pool's seed, and with the space public every other variant could be
+    drawn offline from it. A student reads their lab as its parameters only: no page, API answer or event of theirs
+    names the id or the seed, before or after they submit and are graded."""
+    from grader.core.db import new_session
+    from grader.core.grading import grade_and_store
+    from grader.core.models import Assignment, Submission
+
+    assignment_id, pool_id = _services_pool(api, k=2)
+    _all_kept_but(pool_id, "none")
+    with new_session() as session:
+        session.get(Assignment, assignment_id).open_at -= timedelta(hours=2)
+        session.commit()
+    as_alice = api.as_("alice")
+    read = ["/courses/l03", f"/assignments/{assignment_id}/sheet", f"/v1/assignments/{assignment_id}/sheet",
+            "/v1/sheets"]
+    bodies = {url: api.client.get(url, headers=as_alice) for url in read}
+    made = api.client.post("/v1/submissions", json={"sheet": reference_sheet(), "assignment_id": assignment_id},
+                           headers=as_alice)
+    assert made.status_code == 202, made.text
+    sid = made.json()["id"]
+    with new_session() as session:  # graded on no run (every measured item not measured): the report names its variant
+        submission = session.get(Submission, sid)
+        variant = submission.variant.name
+        grade_and_store(session=session, submission=submission, book=rubric.load_rubric("L03"), complete=True)
+        session.commit()
+        assert session.get(Submission, sid).status == "graded"
+    for url in (f"/v1/submissions/{sid}", f"/v1/submissions/{sid}/grade", f"/v1/submissions/{sid}/grades",
+                f"/v1/submissions/{sid}/case-runs", f"/v1/submissions/{sid}/events", "/v1/submissions",
+                f"/submissions/{sid}", f"/submissions/{sid}/progress", "/courses/l03"):
+        bodies[f"{url} (after)"] = api.client.get(url, headers=as_alice)
+    assert all(r.status_code == 200 for r in bodies.values()), {u: r.status_code for u, r in bodies.items()}
+    assert variant.startswith("v7-")
+    named = re.compile(rf"{re.escape(variant)}|\bv7-[0-9]")  # this variant's id, or any id of the pool's seed
+    leaks = {url: [r.text[max(0, m.start() - 120):m.end() + 60] for m in named.finditer(r.text)][:2]
+             for url, r in bodies.items() if named.search(r.text)}
+    assert not leaks, leaks
