@@ -11,10 +11,12 @@ from celery.signals import (celeryd_after_setup, worker_init, worker_process_ini
                             worker_shutdown)
 from kombu.exceptions import OperationalError as BrokerError
 from sqlalchemy.exc import OperationalError as DatabaseError
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.core import lifecycle
 from grader.core.db import make_engine, new_session
+from grader.core.models import PoolVariant
 from grader.core.settings import settings
 from grader.core.variants import continue_pool, pool_runs
 from worker import grading, slot, warm_gate
@@ -59,12 +61,15 @@ def _release(session, case_run_id: int, delivery: int, error: BaseException) -> 
 
 @app.task(name="worker.tasks.grade_submission", **RETRY)
 def grade_submission(submission_id: int) -> None:
-    """Store the grade, then send its completion (the lab check) behind the waiting case runs. Sent even when
+    """Store the grade, then send its completion (the lab check) behind the waiting case runs (a pool's measuring
+    submission: ahead of the pools' runs, lifecycle.POOL_CHECK_PRIORITY). Sent even when
     the grade was stored already: a redelivery after a crash, or the reconciler re-sending the grade task for a grade
     left incomplete, must still get it completed (completing twice is a no-op)."""
     with new_session() as session:
         grading.grade_submission(session=session, submission_id=submission_id)
-    complete_grade.apply_async(args=[submission_id], queue=COMPLETE_QUEUE, priority=lifecycle.COMPLETE_PRIORITY)
+        measures_pool = session.scalar(select(PoolVariant.id).where(PoolVariant.submission_id == submission_id))
+    priority = lifecycle.POOL_CHECK_PRIORITY if measures_pool is not None else lifecycle.COMPLETE_PRIORITY
+    complete_grade.apply_async(args=[submission_id], queue=COMPLETE_QUEUE, priority=priority)
     _continue_pool(submission_id)  # a measuring submission that failed to grade dropped its variant
 
 

@@ -41,6 +41,10 @@ RERUN_PRIORITY, REQUEUED_PRIORITY, NEW_PRIORITY, COMPLETE_PRIORITY = 0, 3, 6, 9
 # A variant pool's measuring runs (grader.services.setup.variants), sent and re-sent: the lowest, behind every student's
 # runs (a student's next run waits at most for the pool runs slots already hold), in order sent with the lab checks.
 POOL_PRIORITY = 9
+# A pool's lab check (the completion of a measuring submission's grade, which keeps or drops its variant): ahead of
+# every pool's runs, so a pool whose runs are done (or reused) is decided without waiting behind another pool's runs
+# (issue 47: 9 minutes behind one here), and behind a student's first runs. It takes a fraction of a second.
+POOL_CHECK_PRIORITY = 8
 # A student's new runs take 4, 5, 6, 7, then 8 for the rest, by how many of that student's runs wait ahead of them
 # (worker.celery_app gives Redis one list per priority 0-9): a student with one run waiting is served before the
 # fourth run of a student who queued nine, so students' runs interleave instead of first come, first served.
