@@ -9,7 +9,6 @@ from __future__ import annotations
 import copy
 import csv
 import dataclasses
-import datetime as dt
 import io
 import shutil
 from pathlib import Path
@@ -17,6 +16,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from grader.core import clock
 from rubric import load_rubric
 from tests.grader.services.setup.test_assignments import at
 
@@ -90,7 +90,7 @@ def test_an_l02_grade_is_overridden_reviewed_regraded_and_exported_like_any_othe
     # L02 v2 published with P3 worth one point more, and the course regraded under it: the overrides stay in force.
     content = copy.deepcopy(load_rubric("L02", "1").model_dump(mode="json"))
     content["version"] = "2"
-    content["review"] = {"reviewer": "L02 course test instructor", "review_date": dt.date(2026, 12, 8).isoformat(),
+    content["review"] = {"reviewer": "L02 course test instructor", "review_date": clock.now().date().isoformat(),
                          "notes": "P3 weighs one point more"}
     content["items"] = [i | {"points": i["points"] + 1} if i["id"] == "P3" else i for i in content["items"]]
     published = api.client.post("/v1/rubrics/versions", json=content, headers=api.as_("prof"))
