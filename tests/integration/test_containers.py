@@ -310,8 +310,12 @@ def stack(tmp_path_factory):
         # (which the replicas depend on) are refused the first time and go with a second `down` (issue 46).
         downs = [line for line in deployment.guide.lines if " down " in line]
         assert len(downs) == 2 and deployment.guide.lines[-2:] == downs, deployment.guide.lines
+        hung = []
         for line in downs:
-            deployment.shell(line, timeout=600, check=False)
+            try:
+                deployment.shell(line, timeout=600, check=False)
+            except subprocess.TimeoutExpired:  # cleaned up below all the same: a hung `down` must leak nothing
+                hung.append(line)
 
         def leftovers():
             networks = deployment.podman("network", "ls", "-q", "--filter", f"label=io.podman.compose.project="
@@ -324,6 +328,7 @@ def stack(tmp_path_factory):
         if any(left):  # cleaned up before the assertion, so that a failure here leaks nothing into later runs
             deployment.podman("rm", "-f", "--depend", "-t", "5", *left[0], check=False)
             deployment.compose("down", "-v", "-t", "5", timeout=600, check=False)
+        assert not hung, f"the guide's `down` did not end within 600 s: {hung}; left behind: {left}"
         assert not any(left), f"the guide's `down` left behind: {left}"
 
 
