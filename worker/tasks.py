@@ -11,14 +11,12 @@ from celery.signals import (celeryd_after_setup, worker_init, worker_process_ini
                             worker_shutdown)
 from kombu.exceptions import OperationalError as BrokerError
 from sqlalchemy.exc import OperationalError as DatabaseError
-from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from grader.core import lifecycle
 from grader.core.db import make_engine, new_session
-from grader.core.models import PoolVariant
 from grader.core.settings import settings
-from grader.core.variants import continue_pool, pool_runs
+from grader.core.variants import completion_priority, continue_pool, pool_runs
 from worker import grading, slot, warm_gate
 from worker.audit import audit_finished_run
 from worker.case_run import process_case_run
@@ -67,8 +65,7 @@ def grade_submission(submission_id: int) -> None:
     left incomplete, must still get it completed (completing twice is a no-op)."""
     with new_session() as session:
         grading.grade_submission(session=session, submission_id=submission_id)
-        measures_pool = session.scalar(select(PoolVariant.id).where(PoolVariant.submission_id == submission_id))
-    priority = lifecycle.POOL_CHECK_PRIORITY if measures_pool is not None else lifecycle.COMPLETE_PRIORITY
+        priority = completion_priority(session, submission_id)
     complete_grade.apply_async(args=[submission_id], queue=COMPLETE_QUEUE, priority=priority)
     _continue_pool(submission_id)  # a measuring submission that failed to grade dropped its variant
 

@@ -17,7 +17,8 @@ from sqlalchemy.orm import Session
 import rubric
 from rubric.copying import copy_evidence
 
-from grader.core.lifecycle import NEW_PRIORITY, POOL_PRIORITY, reuse_at_admission, stored_result
+from grader.core.lifecycle import (COMPLETE_PRIORITY, NEW_PRIORITY, POOL_CHECK_PRIORITY, POOL_PRIORITY,
+                                   reuse_at_admission, stored_result)
 from grader.core.models import CaseRun, CopyFlag, Event, Grade, PoolVariant, Submission, User, VariantPool, utcnow
 from grader.core.rubrics import course_rubric
 from grader.core.states import CaseRunState, PoolState, VariantState
@@ -62,6 +63,13 @@ def pool_runs(session: Session, case_run_ids) -> set[int]:
 def send_priority(session: Session, run: CaseRun, otherwise: int = NEW_PRIORITY) -> int:
     """The priority to send `run` at: POOL_PRIORITY for a pool's measuring run, else `otherwise`."""
     return POOL_PRIORITY if pool_runs(session, [run.id]) else otherwise
+
+
+def completion_priority(session: Session, submission_id: int) -> int:
+    """The priority to send a grade's completion (its lab check) at: POOL_CHECK_PRIORITY for a pool's measuring
+    submission (ahead of every pool's runs), else COMPLETE_PRIORITY (behind every case)."""
+    measuring = session.scalar(select(PoolVariant.id).where(PoolVariant.submission_id == submission_id))
+    return POOL_CHECK_PRIORITY if measuring is not None else COMPLETE_PRIORITY
 
 
 def decide(session: Session, row: PoolVariant, *, kept: bool, reason: str | None, check: dict | None = None) -> None:
@@ -258,7 +266,7 @@ def try_flag_copying(session: Session, submission: Submission, grade: Grade, rep
                           detail=f"copy evidence not computed ({type(exc).__name__}); see the service log"))
 
 
-__all__ = ["as_variant", "continue_pool", "decide", "draw_budget", "drop_reason", "kept_count", "outcome",
+__all__ = ["as_variant", "completion_priority", "continue_pool", "decide", "draw_budget", "drop_reason", "kept_count", "outcome",
            "serves_students", "flag_copying", "measured_variant", "measuring_submissions",
            "pool_runs", "runs_on", "record_check", "record_failure", "send_priority", "submission_variant",
            "try_flag_copying"]

@@ -178,7 +178,8 @@ class AssignmentVariants(BaseModel):
 
 class LessonAnalysis(BaseModel):
     """The item analysis (rubric.analysis.ClassAnalysis) of one lesson of the course, over each student's latest
-    graded attempt of that lesson: items are compared with the same lesson's items only (one lesson's C1 is not another's)."""
+    graded attempt of that lesson: items are compared with the same lesson's items only (one lesson's C1 is not
+    another's)."""
 
     lesson: str
     analysis: dict[str, Any]
