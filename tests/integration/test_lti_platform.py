@@ -29,10 +29,8 @@ pytestmark = pytest.mark.integration
 
 # How long the slow platform takes to answer a request the tool waits on: several sign-ins long, a quick test still.
 DELAY_S = 2.0
-# A sign-in that queued behind a lock the tool held across the platform's answer waits out the rest of DELAY_S: the
-# first one during the wait most of it. One that did not wait is far shorter than half of it, however loaded the
-# machine (a fixed 0.5 s over the quiet median failed a CI run of 2026-12-08 at 0.58 s, with nothing held).
-WAITED_ON_THE_PLATFORM_S = DELAY_S / 2
+# Another course's sign-in while the tool waits on the platform may be this much slower than without it.
+SIGN_IN_SLOWER_BOUND_S = 0.5
 # A probe of what the tool holds runs while the platform holds its answer back, so what the tool holds across the
 # request stays held through it; a sign-in's own short transaction does not last this long.
 PROBE_S = 0.5
@@ -178,7 +176,7 @@ def _check_nothing_waited(platform: Platform, what: str, quiet: list, during: li
     # what the tool held is asked first: a slow sign-in then says whether a lock or only the machine's load was behind
     # it (a full-suite run saw one sign-in of 2.3 s on SQLite, with nothing known of what was held)
     assert held == []
-    assert slowest < WAITED_ON_THE_PLATFORM_S, sorted(t for _, t in during)[-5:]
+    assert slowest < usual + SIGN_IN_SLOWER_BOUND_S, sorted(t for _, t in during)[-5:]
     assert len(during) >= 2  # the sign-ins overlapped the wait
 
 
